@@ -1,0 +1,171 @@
+"""Named scenario presets (the paper's testbeds) and their validated overrides.
+
+A :class:`Scenario` is a frozen record of everything that defines a navigation task:
+team size, obstacles, map, horizon and an optional team-size change. The presets follow
+the paper's "Testbeds" section:
+
+==============  ======  =========  ========  =======  ===========================
+name            agents  obstacles  map (m²)  horizon  team change
+==============  ======  =========  ========  =======  ===========================
+``mpe-5``       5       5          4         18       —
+``mpe-20``      20      10         64        45       —
+``mpe-50``      50      30         400       90       —
+``mpe-20to10``  20      10         64        45       20 ⇒ 10 at step 45 // 3
+``mpe-50to20``  50      30         400       90       50 ⇒ 20 at step 90 // 3
+``drone-5``     5       0          36        300      —
+``drone-20``    20      0          256       500      —
+``drone-20to10`` 20     0          256       500      20 ⇒ 10 at step 500 // 3
+==============  ======  =========  ========  =======  ===========================
+
+``world_size`` is the side of the square map in metres (``world_size ** 2`` is the
+paper's map area); the map spans ``[-world_size / 2, world_size / 2]`` on each axis.
+Landmarks always number ``num_agents`` (the paper keeps N1 landmarks when the team
+shrinks).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+__all__ = ["Scenario", "SCENARIOS", "OVERRIDES", "get_scenario", "scenario_names"]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A navigation task. Every field can be overridden by keyword (see ``OVERRIDES``)."""
+
+    name: str
+    """Preset name the scenario was built from (``mpe-20``, ``drone-5``, …)."""
+    kind: str
+    """``"particle"`` (2-D MPE world) or ``"drone"`` (3-D MuJoCo world)."""
+    num_agents: int
+    """Team size at the start of an episode; also the number of landmarks."""
+    num_obstacles: int
+    """Immovable circular obstacles (particle world only)."""
+    world_size: float
+    """Side of the square map in metres; the map area is ``world_size ** 2``."""
+    horizon: int
+    """Environment steps per episode."""
+    team_after: int | None = None
+    """Team size after the change (``None``: the team never changes)."""
+    change_step: int | None = None
+    """Step after which the team shrinks; defaults to ``horizon // 3`` when ``team_after`` is set."""
+    agent_radius: float = 0.1
+    """Agent circle radius in metres (paper: 0.1)."""
+    landmark_radius: float = 0.05
+    """Landmark circle radius in metres (paper: 0.05)."""
+    obstacle_radius: float = 0.1
+    """Obstacle circle radius in metres (paper: 0.1)."""
+
+    @property
+    def varying(self) -> bool:
+        """True when the team shrinks during the episode."""
+        return self.team_after is not None
+
+    @property
+    def num_landmarks(self) -> int:
+        return self.num_agents
+
+    @property
+    def area(self) -> float:
+        return self.world_size**2
+
+    @property
+    def reach_distance(self) -> float:
+        """An alive agent reaches a landmark when their centres are closer than this."""
+        return self.agent_radius + self.landmark_radius
+
+
+def _particle(name, n, k, area, horizon, team_after=None):
+    return Scenario(name=name, kind="particle", num_agents=n, num_obstacles=k,
+                    world_size=math.sqrt(area), horizon=horizon, team_after=team_after)
+
+
+def _drone(name, n, area, horizon, team_after=None):
+    return Scenario(name=name, kind="drone", num_agents=n, num_obstacles=0,
+                    world_size=math.sqrt(area), horizon=horizon, team_after=team_after)
+
+
+SCENARIOS: dict[str, Scenario] = {s.name: s for s in [
+    _particle("mpe-5", 5, 5, 4.0, 18),
+    _particle("mpe-20", 20, 10, 64.0, 45),
+    _particle("mpe-50", 50, 30, 400.0, 90),
+    _particle("mpe-20to10", 20, 10, 64.0, 45, team_after=10),
+    _particle("mpe-50to20", 50, 30, 400.0, 90, team_after=20),
+    _drone("drone-5", 5, 36.0, 300),
+    _drone("drone-20", 20, 256.0, 500),
+    _drone("drone-20to10", 20, 256.0, 500, team_after=10),
+]}
+
+#: Names accepted as overrides, with the type each value is converted to.
+OVERRIDES: dict[str, type] = {
+    "num_agents": int, "num_obstacles": int, "world_size": float, "horizon": int,
+    "team_after": int, "change_step": int, "agent_radius": float,
+    "landmark_radius": float, "obstacle_radius": float,
+}
+
+
+def scenario_names(kind: str | None = None) -> list[str]:
+    """Valid preset names, optionally only those of one ``kind``."""
+    return [n for n, s in SCENARIOS.items() if kind is None or s.kind == kind]
+
+
+def get_scenario(name: str | Scenario, **overrides) -> Scenario:
+    """Look up a preset and apply overrides, validating every value.
+
+    >>> get_scenario("mpe-50", num_agents=100).num_agents
+    100
+    """
+    if isinstance(name, Scenario):
+        base = name
+    else:
+        if name not in SCENARIOS:
+            raise ValueError(f"unknown scenario {name!r}; expected one of {sorted(SCENARIOS)}")
+        base = SCENARIOS[name]
+    unknown = sorted(set(overrides) - set(OVERRIDES))
+    if unknown:
+        raise ValueError(f"unknown override(s) {unknown}; valid overrides are {sorted(OVERRIDES)}")
+    values = {}
+    for key, value in overrides.items():
+        if value is None and key in ("team_after", "change_step"):
+            values[key] = None
+            continue
+        cast = OVERRIDES[key]
+        try:
+            if isinstance(value, bool) or (cast is int and isinstance(value, float) and not value.is_integer()):
+                raise TypeError
+            values[key] = cast(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"override {key}={value!r}: expected a {cast.__name__}") from None
+    sc = dataclasses.replace(base, **values)
+    # A bigger team changes the default team-size change only if the user did not say.
+    if sc.team_after is not None and sc.change_step is None:
+        sc = dataclasses.replace(sc, change_step=sc.horizon // 3)
+    _validate(sc)
+    return sc
+
+
+def _validate(sc: Scenario) -> None:
+    def need(cond, what):
+        if not cond:
+            raise ValueError(f"scenario {sc.name!r}: expected {what}")
+
+    need(sc.num_agents >= 1, f"num_agents >= 1, got {sc.num_agents}")
+    need(sc.num_obstacles >= 0, f"num_obstacles >= 0, got {sc.num_obstacles}")
+    need(sc.kind == "particle" or sc.num_obstacles == 0, "num_obstacles == 0 for drone scenarios")
+    need(sc.world_size > 0 and math.isfinite(sc.world_size), f"world_size > 0, got {sc.world_size}")
+    need(sc.horizon >= 1, f"horizon >= 1, got {sc.horizon}")
+    for r in ("agent_radius", "landmark_radius", "obstacle_radius"):
+        need(getattr(sc, r) > 0, f"{r} > 0, got {getattr(sc, r)}")
+    if sc.team_after is not None:
+        need(1 <= sc.team_after <= sc.num_agents,
+             f"1 <= team_after <= num_agents ({sc.num_agents}), got {sc.team_after}")
+        need(0 <= sc.change_step < sc.horizon, f"0 <= change_step < horizon, got {sc.change_step}")
+    # Loose packing check so rejection sampling of spawns terminates quickly.
+    body_area = math.pi * (sc.num_agents * (sc.agent_radius + 0.05) ** 2
+                           + sc.num_obstacles * (sc.obstacle_radius + 0.05) ** 2
+                           + sc.num_agents * sc.landmark_radius ** 2)
+    need(body_area < 0.35 * sc.area,
+         f"a map large enough to place every body without overlap (world_size={sc.world_size:g} "
+         f"is too small for {sc.num_agents} agents and {sc.num_obstacles} obstacles)")
