@@ -1,0 +1,120 @@
+"""``bench env``: how many agent-steps per second the batched particle world delivers.
+
+Measures :class:`~masp_lite.envs.particle.ParticleWorld` on ``mpe-50`` (50 agents,
+30 obstacles, horizon 90) with uniformly random action ids, for 1, 64 and 256 parallel
+worlds, and — when the test-only reference ``mpe2`` is installed — PettingZoo's
+``simple_spread_v3`` with 50 agents through its parallel API with random actions, *in the
+same run*, so that the ratio compares like with like on whatever machine runs it.
+
+What is counted: one agent-step is one agent advanced by one environment step
+(``steps × worlds × agents``). Episode resets **are included** in the timed loop (a world
+that reaches its horizon is reset, as in training), and so is drawing the random actions.
+Each measurement warms up for a few steps, then runs for ``--seconds`` of wall time.
+
+Options: ``--seconds`` per measurement, ``--threads`` torch threads (default 2),
+``--worlds`` the batch sizes, ``--json PATH`` to also write the figures as JSON.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import torch
+
+from ..envs.particle import NUM_ACTIONS, ParticleWorld
+
+SCENARIO = "mpe-50"
+RATIO_AT = 64  # the batch size at which masp-lite is compared with mpe2
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seconds", type=float, default=3.0, help="wall time per measurement (default 3)")
+    parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    parser.add_argument("--worlds", type=int, nargs="+", default=[1, 64, 256],
+                        help="numbers of parallel worlds to measure (default 1 64 256)")
+    parser.add_argument("--json", metavar="PATH", default=None, help="also write the results as JSON")
+
+
+def measure_masp(num_envs: int, seconds: float, seed: int = 0) -> float:
+    """Agent-steps/s of ``num_envs`` mpe-50 worlds under random actions (resets included)."""
+    world = ParticleWorld(SCENARIO, num_envs=num_envs, seed=seed)
+    gen = torch.Generator().manual_seed(seed)
+    shape = (num_envs, world.num_agents)
+
+    def one_step():
+        world.step(torch.randint(0, NUM_ACTIONS, shape, generator=gen))
+        if bool(world.done.any()):
+            world.reset()
+
+    for _ in range(3):
+        one_step()
+    steps, start = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < seconds:
+        one_step()
+        steps += 1
+    return steps * num_envs * world.num_agents / elapsed
+
+
+def measure_mpe2(seconds: float, num_agents: int = 50, horizon: int = 90, seed: int = 0) -> float | None:
+    """Agent-steps/s of mpe2's ``simple_spread_v3`` (parallel API, random actions); None without mpe2."""
+    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+    try:
+        from mpe2 import simple_spread_v3
+    except ImportError:
+        return None
+    env = simple_spread_v3.parallel_env(N=num_agents, max_cycles=horizon)
+    env.reset(seed=seed)
+    for i, agent in enumerate(env.possible_agents):
+        env.action_space(agent).seed(seed + i)
+
+    def one_step():
+        actions = {a: env.action_space(a).sample() for a in env.agents}
+        env.step(actions)
+        if not env.agents:
+            env.reset()
+
+    one_step()
+    steps, start = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < seconds:
+        one_step()
+        steps += 1
+    env.close()
+    return steps * num_agents / elapsed
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.seconds > 0:
+        raise ValueError(f"--seconds: expected a positive number, got {args.seconds}")
+    if args.threads < 1:
+        raise ValueError(f"--threads: expected a positive int, got {args.threads}")
+    if any(b < 1 for b in args.worlds):
+        raise ValueError(f"--worlds: expected positive ints, got {args.worlds}")
+    torch.set_num_threads(args.threads)
+    print(f"bench env: {SCENARIO} (50 agents, 30 obstacles), random actions, resets included, "
+          f"{args.threads} thread(s), {args.seconds:g} s per measurement")
+    masp = {}
+    for b in args.worlds:
+        masp[b] = measure_masp(b, args.seconds)
+        print(f"  masp-lite  {b:>5} world(s)      {masp[b]:>14,.0f} agent-steps/s")
+    ref = measure_mpe2(args.seconds)
+    ratio = None
+    if ref is None:
+        print("  mpe2 not installed: no reference measurement")
+    else:
+        print(f"  mpe2 simple_spread_v3 (1 episode) {ref:>14,.0f} agent-steps/s")
+        base = RATIO_AT if RATIO_AT in masp else max(masp)
+        ratio = masp[base] / ref
+        print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x")
+    if args.json:
+        result = {"target": "env", "scenario": SCENARIO, "num_agents": 50, "resets": "included",
+                  "actions": "random", "threads": args.threads, "seconds": args.seconds,
+                  "torch": torch.__version__,
+                  "masp_agent_steps_per_s": {str(b): v for b, v in masp.items()},
+                  "mpe2_agent_steps_per_s": ref,
+                  "ratio": None if ratio is None else {"worlds": base, "value": ratio}}
+        with open(args.json, "w") as f:
+            json.dump(result, f, indent=2)
+        print(f"  wrote {args.json}")
+    return 0

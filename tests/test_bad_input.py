@@ -1,0 +1,193 @@
+"""Every bad input fails with one clear ValueError naming what was expected."""
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from masp_lite.__main__ import main
+from masp_lite.bench import load_target
+from masp_lite.envs import OVERRIDES, SCENARIOS, make, parallel_env
+
+
+# ------------------------------------------------------------------ scenarios and overrides
+@pytest.mark.parametrize("build", [make, parallel_env])
+def test_unknown_scenario_lists_the_valid_ones(build):
+    with pytest.raises(ValueError) as e:
+        build("mpe-7")
+    assert "mpe-7" in str(e.value) and all(name in str(e.value) for name in SCENARIOS)
+
+
+@pytest.mark.parametrize("build", [make, parallel_env])
+def test_unknown_override_lists_the_valid_ones(build):
+    with pytest.raises(ValueError) as e:
+        build("mpe-5", num_agent=3)
+    assert "num_agent" in str(e.value) and all(name in str(e.value) for name in OVERRIDES)
+
+
+@pytest.mark.parametrize("override", [{"num_agents": 0}, {"num_agents": 2.5}, {"world_size": -1.0},
+                                      {"horizon": "long"}, {"team_after": 30}, {"num_agents": True},
+                                      {"num_agents": 400, "world_size": 3.0}])
+def test_bad_override_values(override):
+    with pytest.raises(ValueError, match="expected"):
+        make("mpe-20", **override)
+
+
+def test_bad_render_mode():
+    with pytest.raises(ValueError, match="render_mode"):
+        parallel_env("mpe-5", render_mode="ansi")
+
+
+# ------------------------------------------------------------------ batched world actions
+@pytest.fixture
+def world():
+    return make("mpe-5", num_envs=2, seed=0)
+
+
+@pytest.mark.parametrize("actions, words", [
+    (torch.zeros(2, 4, dtype=torch.long), "shape"),
+    (torch.zeros(5, dtype=torch.long), "shape"),
+    (torch.zeros(2, 5), "integer"),
+    (np.zeros((2, 5)), "integer"),
+    (torch.zeros(2, 5, dtype=torch.bool), "integer"),
+    (torch.full((2, 5), 5), r"\[0, 5\)"),
+    (torch.full((2, 5), -1), r"\[0, 5\)"),
+    ([[0] * 5] * 2, "tensor"),
+])
+def test_bad_actions_for_the_batched_world(world, actions, words):
+    with pytest.raises(ValueError, match=words):
+        world.step(actions)
+
+
+def test_numpy_int_actions_are_accepted(world):
+    for dtype in (np.int64, np.int32, np.uint8):
+        world.step(np.full((2, 5), 2, dtype=dtype))
+    assert world.t.tolist() == [3, 3]
+
+
+def test_step_after_the_horizon_asks_for_reset():
+    w = make("mpe-5", horizon=2, seed=0)
+    for _ in range(2):
+        w.step(torch.zeros(1, 5, dtype=torch.long))
+    with pytest.raises(ValueError, match="reset"):
+        w.step(torch.zeros(1, 5, dtype=torch.long))
+
+
+# ------------------------------------------------------------------ PettingZoo actions
+@pytest.fixture
+def env():
+    e = parallel_env("mpe-5")
+    e.reset(seed=0)
+    return e
+
+
+def all_agents(env, value=0):
+    return {a: value for a in env.agents}
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda acts: acts.update(agent_9=0), "unknown agent"),
+    (lambda acts: acts.update(bob=0), "unknown agent"),
+    (lambda acts: acts.pop("agent_3"), "missing agent"),
+    (lambda acts: acts.update(agent_0=5), r"\[0, 5\)"),
+    (lambda acts: acts.update(agent_0=-1), r"\[0, 5\)"),
+    (lambda acts: acts.update(agent_0=1.0), "integer"),
+    (lambda acts: acts.update(agent_0=np.float32(1)), "integer"),
+    (lambda acts: acts.update(agent_0="up"), "integer"),
+    (lambda acts: acts.update(agent_0=True), "integer"),
+    (lambda acts: acts.update(agent_0=[1, 2]), "integer"),
+])
+def test_bad_actions_for_the_pettingzoo_face(env, change, words):
+    acts = all_agents(env)
+    change(acts)
+    with pytest.raises(ValueError, match=words) as e:
+        env.step(acts)
+    assert "agent_0" in str(e.value)  # names what was expected
+    assert env.world.t.tolist() == [0]  # nothing happened
+
+
+def test_actions_must_be_a_dict(env):
+    with pytest.raises(ValueError, match="dict"):
+        env.step([0, 0, 0, 0, 0])
+
+
+def test_dropped_agent_may_not_act():
+    e = parallel_env("mpe-5", team_after=2, change_step=1)
+    e.reset(seed=0)
+    gone = set(e.possible_agents)
+    e.step(all_agents(e))
+    gone -= set(e.agents)
+    with pytest.raises(ValueError, match="unknown agent"):
+        e.step({**all_agents(e), sorted(gone)[0]: 0})
+
+
+# ------------------------------------------------------------------ reset options
+@pytest.mark.parametrize("options, words", [
+    ({"agent_pos": np.zeros((4, 2))}, "agent_pos.*shape"),
+    ({"landmark_pos": np.zeros((5, 3))}, "landmark_pos.*shape"),
+    ({"obstacle_pos": np.zeros((6, 2))}, "obstacle_pos.*shape"),
+    ({"agent_vel": np.zeros(10)}, "agent_vel.*shape"),
+    ({"agent_pos": np.full((5, 2), np.nan)}, "finite"),
+    ({"agent_pos": np.array([[0, 0], [0.1, 0], [0.6, 0], [0.9, 0], [-0.6, 0]])}, "agents overlap"),
+    ({"agent_pos": np.array([[0, 0], [0.3, 0], [0.6, 0], [0.9, 0], [-0.6, 0]]),
+      "obstacle_pos": np.array([[0.0, 0.15], [0, 0.6], [0, -0.6], [0.6, 0.6], [-0.6, -0.6]])}, "obstacle"),
+    ({"obstacle_pos": np.zeros((5, 2))}, "obstacles overlap"),
+    ({"keep": np.ones(5)}, "keep"),
+])
+@pytest.mark.parametrize("face", ["batched", "pettingzoo"])
+def test_bad_reset_options(face, options, words):
+    target = make("mpe-5", seed=0) if face == "batched" else parallel_env("mpe-5")
+    with pytest.raises(ValueError, match=words):
+        target.reset(options=options)
+
+
+def test_unknown_reset_option_fails_in_the_batched_world():
+    with pytest.raises(ValueError) as e:
+        make("mpe-5", seed=0).reset(options={"agent_position": np.zeros((5, 2))})
+    assert "agent_position" in str(e.value) and "agent_pos" in str(e.value)
+
+
+def test_unknown_reset_option_warns_in_the_pettingzoo_face():
+    # PettingZoo's parallel_api_test itself passes options={"options": 1}: warn, don't fail
+    with pytest.warns(UserWarning, match="agent_position.*agent_pos"):
+        parallel_env("mpe-5").reset(options={"agent_position": np.zeros((5, 2))})
+
+
+# ------------------------------------------------------------------ bench command
+def test_missing_or_unknown_bench_target_is_a_clear_error(monkeypatch, capsys):
+    with pytest.raises(ValueError, match="expected one of"):
+        load_target("gpu")
+    import importlib
+    real = importlib.import_module
+
+    def fake_import(name, *args):
+        if name == "masp_lite.bench.planners":
+            err = ModuleNotFoundError(f"No module named {name!r}")
+            err.name = name
+            raise err
+        return real(name, *args)
+
+    monkeypatch.setattr(importlib, "import_module", fake_import)
+    with pytest.raises(ValueError, match="not available"):
+        load_target("planners")
+    assert main(["bench", "planners"]) == 2
+    assert "not available" in capsys.readouterr().err
+
+
+def test_bench_env_rejects_bad_options(capsys):
+    assert main(["bench", "env", "--seconds", "0"]) == 2
+    assert "--seconds" in capsys.readouterr().err
+
+
+def test_bench_env_smoke(tmp_path, capsys):
+    """Output format only: tiny budgets, no timing assertions."""
+    out = tmp_path / "env.json"
+    assert main(["bench", "env", "--seconds", "0.05", "--threads", "1", "--worlds", "1", "4",
+                 "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "resets included" in text and text.count("agent-steps/s") >= 2
+    result = json.loads(out.read_text())
+    assert set(result["masp_agent_steps_per_s"]) == {"1", "4"}
+    assert all(v > 0 for v in result["masp_agent_steps_per_s"].values())
+    if result["mpe2_agent_steps_per_s"] is not None:
+        assert "ratio" in text and result["ratio"]["worlds"] == 4
