@@ -1,0 +1,179 @@
+"""Flying the Hummingbirds: motor mixing, a Lee geometric controller, and h-greedy.
+
+Why hand-written: the controller is a dozen lines of linear algebra on batched torch
+tensors (B worlds × N drones at once); no CPU library ships a batched one. It follows
+Lee, Leok & McClamroch, "Geometric tracking control of a quadrotor UAV on SE(3)"
+(CDC 2010), as OmniDrones' ``LeePositionController`` uses it, with the Hummingbird's gains
+from OmniDrones (position 4, velocity 2.2, attitude [0.7, 0.7, 0.035], rate
+[0.1, 0.1, 0.025]):
+
+1. **position loop** — desired acceleration ``a = −k_x e_x − k_v e_v + g e_3 + a_d``
+   (:func:`position_loop`); ``e_x`` is clipped so that the cruise speed stays below
+   ``max_speed`` (a saturated P-loop: ``k_x |e_x| = k_v v_max`` at cruise);
+2. **attitude** — the body z axis must point along ``a``; with the yaw heading
+   ``b_1c = (cos ψ, sin ψ, 0)``: ``b_3 = a/|a|``, ``b_2 = b_3 × b_1c / |·|``,
+   ``b_1 = b_2 × b_3``, ``R_d = [b_1 b_2 b_3]``;
+3. **collective thrust** ``f = m a · R e_3`` and **moments**
+   ``M = −k_R e_R − k_Ω Ω + Ω × JΩ`` with ``e_R = ½ (R_dᵀR − RᵀR_d)^∨``;
+4. **motor mixing** — the rotor thrusts ``f_i`` solve ``A f = (f, M_x, M_y, M_z)``, where
+   ``A`` (:func:`allocation_matrix`) follows from the rotor layout: rotor ``i`` at
+   ``(x_i, y_i)`` adds ``y_i f_i`` to the roll moment, ``−x_i f_i`` to the pitch moment and
+   ``−d_i (k_m/k_f) f_i`` to the yaw moment; ``MIXER = A⁻¹``;
+5. **commands** ``c_i = 2 f_i / f_max − 1`` (the inverse of the rotor model's steady state,
+   :mod:`masp_lite.envs.drone_model`), clipped to [−1, 1].
+
+:class:`DroneHungarianGreedy` is the h-greedy reference for drone worlds (the paper's "(H)"
+goal assignment with straight-line motion): Hungarian assignment of drones to landmarks in
+3-D (:func:`masp_lite.algos.assignment.hungarian`), then each drone flies straight to its
+landmark under the controller. It re-assigns when the team changes (a crash, or the
+drop after ``change_step``); in varying-team scenarios, where success counts landmarks
+ever reached, it also re-assigns the free drones to landmarks not yet reached.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ..envs.drone_model import GRAVITY, HUMMINGBIRD, MAX_THRUST, rotor_positions
+
+__all__ = ["allocation_matrix", "MIXER", "quat_to_matrix", "position_loop", "LeeController",
+           "thrusts_to_commands", "DroneHungarianGreedy"]
+
+
+def allocation_matrix() -> np.ndarray:
+    """(4, 4) map from rotor thrusts to (collective thrust, roll, pitch, yaw moment)."""
+    xy = rotor_positions()
+    d = np.asarray(HUMMINGBIRD["directions"])
+    yaw = HUMMINGBIRD["moment_constant"] / HUMMINGBIRD["force_constant"]
+    return np.stack([np.ones(4), xy[:, 1], -xy[:, 0], -d * yaw])
+
+
+MIXER = np.linalg.inv(allocation_matrix())
+"""(4, 4) motor mixing: rotor thrusts = MIXER @ (thrust, M_x, M_y, M_z)."""
+
+
+def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
+    """Rotation matrices (..., 3, 3) from unit quaternions (..., 4) in MuJoCo's (w, x, y, z)."""
+    w, x, y, z = q.unbind(-1)
+    return torch.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1).reshape(*q.shape[:-1], 3, 3)
+
+
+def position_loop(pos, vel, target_pos, target_vel, target_acc, kx: float = 4.0, kv: float = 2.2,
+                  max_speed: float | None = None) -> torch.Tensor:
+    """Desired acceleration (..., 3) of Lee's position loop, gravity compensated.
+
+    ``a = −kx·e_x − kv·e_v + g·e_3 + a_d`` with ``e_x = pos − target_pos`` (its norm clipped
+    to ``kv/kx · max_speed`` when ``max_speed`` is given) and ``e_v = vel − target_vel``.
+    """
+    ex = pos - target_pos
+    if max_speed is not None:
+        norm = ex.norm(dim=-1, keepdim=True).clamp_min(1e-9)
+        ex = ex * (kv * max_speed / kx / norm).clamp(max=1.0)
+    g = torch.zeros_like(pos)
+    g[..., 2] = GRAVITY
+    return -kx * ex - kv * (vel - target_vel) + g + target_acc
+
+
+def thrusts_to_commands(thrusts: torch.Tensor) -> torch.Tensor:
+    """Motor commands in [−1, 1] whose steady-state thrust is ``thrusts`` (clipped)."""
+    return (2 * thrusts / MAX_THRUST - 1).clamp(-1.0, 1.0)
+
+
+class LeeController:
+    """Batched geometric controller: drone states and targets → motor commands (..., 4).
+
+    Call it with the world's observation tensors: ``pos``, ``vel`` (world frame),
+    ``quat`` (w x y z), ``angvel`` (body frame) and optional ``target_pos`` (default: hold
+    the current position), ``target_vel``, ``target_acc`` (default 0), ``target_yaw``
+    (default 0 rad).
+    """
+
+    def __init__(self, kx: float = 4.0, kv: float = 2.2, k_att=(0.7, 0.7, 0.035),
+                 k_rate=(0.1, 0.1, 0.025), max_speed: float | None = None, max_tilt_acc: float = 8.0):
+        for name, v in (("kx", kx), ("kv", kv), ("max_tilt_acc", max_tilt_acc)):
+            if not (isinstance(v, (int, float)) and v > 0):
+                raise ValueError(f"{name}: expected a positive number, got {v!r}")
+        if max_speed is not None and not (isinstance(max_speed, (int, float)) and max_speed > 0):
+            raise ValueError(f"max_speed: expected a positive number or None, got {max_speed!r}")
+        self.kx, self.kv, self.max_speed, self.max_tilt_acc = float(kx), float(kv), max_speed, float(max_tilt_acc)
+        self.k_att = torch.tensor(k_att, dtype=torch.float64)
+        self.k_rate = torch.tensor(k_rate, dtype=torch.float64)
+        self.inertia = torch.tensor(HUMMINGBIRD["inertia"], dtype=torch.float64)
+        self.mixer = torch.from_numpy(MIXER)
+
+    def __call__(self, pos, vel, quat, angvel, target_pos=None, target_vel=None, target_acc=None,
+                 target_yaw=None) -> torch.Tensor:
+        dtype = pos.dtype
+        pos, vel, quat, angvel = (x.to(torch.float64) for x in (pos, vel, quat, angvel))
+        zero = torch.zeros_like(pos)
+        tp = pos if target_pos is None else target_pos.to(torch.float64)
+        tv = zero if target_vel is None else target_vel.to(torch.float64)
+        ta = zero if target_acc is None else target_acc.to(torch.float64)
+        acc = position_loop(pos, vel, tp, tv, ta, self.kx, self.kv, self.max_speed)
+        # limit the horizontal part (the tilt), never the vertical one
+        h = acc[..., :2].norm(dim=-1, keepdim=True).clamp_min(1e-9)
+        acc = torch.cat([acc[..., :2] * (self.max_tilt_acc / h).clamp(max=1.0), acc[..., 2:].clamp_min(0.5)], -1)
+        R = quat_to_matrix(quat / quat.norm(dim=-1, keepdim=True))
+        yaw = torch.zeros(pos.shape[:-1], dtype=torch.float64) if target_yaw is None else \
+            torch.as_tensor(target_yaw, dtype=torch.float64).expand(pos.shape[:-1])
+        b1c = torch.stack([yaw.cos(), yaw.sin(), torch.zeros_like(yaw)], -1)
+        b3 = acc / acc.norm(dim=-1, keepdim=True)
+        b2 = torch.linalg.cross(b3, b1c)
+        b2 = b2 / b2.norm(dim=-1, keepdim=True).clamp_min(1e-9)
+        Rd = torch.stack([torch.linalg.cross(b2, b3), b2, b3], -1)
+        E = 0.5 * (Rd.transpose(-1, -2) @ R - R.transpose(-1, -2) @ Rd)
+        e_R = torch.stack([E[..., 2, 1], E[..., 0, 2], E[..., 1, 0]], -1)
+        moments = -self.k_att * e_R - self.k_rate * angvel + torch.linalg.cross(angvel, self.inertia * angvel)
+        thrust = HUMMINGBIRD["mass"] * (acc * R[..., :, 2]).sum(-1, keepdim=True)
+        rotor = torch.cat([thrust, moments], -1) @ self.mixer.T
+        return thrusts_to_commands(rotor).to(dtype)
+
+
+class DroneHungarianGreedy:
+    """h-greedy for drone worlds: Hungarian drones→landmarks in 3-D, fly straight, hover there.
+
+    Options: ``max_speed`` (m/s, default 4), ``replan_every`` (steps between re-assignments
+    in varying-team scenarios, default 15), and the controller's gains (see
+    :class:`LeeController`). The velocity gain defaults to ``kv = 4`` instead of
+    OmniDrones' 2.2: with ``kx = 4`` the position loop is then critically damped, so a drone
+    stops on its landmark instead of overshooting into a neighbour or out of the map
+    (on drone-20 this lifts h-greedy's success rate from ≈0.96 to ≈0.98).
+    """
+
+    def __init__(self, world, max_speed: float = 4.0, replan_every: int = 15, kv: float = 4.0, **gains):
+        if getattr(world.scenario, "kind", None) != "drone":
+            raise ValueError("DroneHungarianGreedy: expected a drone world (drone-* scenario)")
+        if not isinstance(replan_every, int) or replan_every < 1:
+            raise ValueError(f"replan_every: expected a positive int, got {replan_every!r}")
+        self.world, self.replan_every = world, replan_every
+        self.controller = LeeController(kv=kv, max_speed=max_speed, **gains)
+        self.goal = None
+
+    def _assign(self, obs):
+        from ..algos.assignment import hungarian
+        alive, lms = obs["alive"], obs["landmark_pos"]
+        goal_mask = torch.ones_like(obs["reached"])
+        if self.world.scenario.varying:  # success = ever reached: go where nobody has been
+            free = ~obs["reached"]
+            goal_mask = torch.where(free.any(1, keepdim=True), free, goal_mask)
+        idx = hungarian(obs["agent_pos"], lms, agent_mask=alive, goal_mask=goal_mask).to(lms.device)
+        target = torch.gather(lms, 1, idx.clamp_min(0).unsqueeze(-1).expand(-1, -1, 3))
+        self.goal = torch.where((idx >= 0).unsqueeze(-1), target, obs["agent_pos"])
+        self._alive = alive.clone()
+
+    def reset(self, obs) -> None:
+        self._steps = 0
+        self._assign(obs)
+
+    def act(self, obs) -> torch.Tensor:
+        if self.goal is None:
+            self.reset(obs)
+        self._steps += 1
+        if not torch.equal(obs["alive"], self._alive) or \
+                (self.world.scenario.varying and self._steps % self.replan_every == 0):
+            self._assign(obs)
+        return self.controller(obs["agent_pos"], obs["agent_vel"], obs["agent_quat"], obs["agent_angvel"],
+                               target_pos=self.goal)
