@@ -1,0 +1,61 @@
+"""Course machinery: exercise checks, fast mode, learner-notebook generation.
+
+Authoring recipe (every chapter follows it)
+-------------------------------------------
+**Files.** Write the instructor version ``solutions/NN_name.ipynb`` (``NN`` = chapter
+number, e.g. ``03_graph_encoders.ipynb``). Never edit ``notebooks/NN_name.ipynb`` by hand:
+it is generated. Add the chapter to the course map in ``notebooks/README.md``.
+
+**Skeleton** (checked by :func:`masp_lite.course.authoring.problems`)::
+
+    # Chapter NN: Title                      (markdown, first cell)
+    ## Objectives                            (what the learner will be able to do; prerequisites)
+    ## Setup                                 (first code cell below, exactly:)
+        import masp_lite.course as course
+        course.setup(seed=0)       # seeds random/NumPy/torch, 2 torch threads
+        FAST = course.fast_mode()  # small budgets under the tests; FAST = False for full size
+    ## Section 1: Title (~10 min)            (as many sections as needed, with time estimates)
+    ## Summary
+    ## Exercises                             (solution cells + graded check cells)
+
+Show library code with ``course.show(fn)`` (``inspect.getsource``); never paste it.
+Scale every budget with ``FAST`` (``episodes = 3 if FAST else 100``): in fast mode a
+chapter must run in about a minute on 2 cores (3 minutes at most).
+
+**An exercise** is two cells. The solution cell (nbgrader ``solution: true``)::
+
+    def my_contact_force(delta, dist, dist_min):
+        \"\"\"...what to compute, which paper equation...\"\"\"
+        ### BEGIN SOLUTION
+        ...the 10-30 lines...
+        ### END SOLUTION
+
+and the graded check cell (nbgrader ``grade: true``, ``points``)::
+
+    contact = course.check(my_contact_force, particle.contact_force,
+                           inputs=cases, name="contact force")
+    course.assert_passed("contact force")
+
+:func:`check` prints ``✓``/``✗``/``…`` and returns the learner's function when it passed,
+the library's otherwise — later cells use ``contact``, so a learner who skips still runs
+the chapter. :func:`assert_passed` makes the cell fail for ``nbgrader autograde`` until
+the exercise is solved; in the learner version the generator tags graded cells
+``raises-exception`` so "Run All" and nbval go on past them. ``inputs`` is a list of cases
+(tuple = positional arguments, dict = keyword arguments) or a function ``seed -> case``.
+Build cells with :mod:`masp_lite.course.authoring` (``markdown``, ``code``,
+``solution``, ``graded``, ``notebook``) or in JupyterLab with the same metadata.
+
+**Regenerate and test**::
+
+    python -m masp_lite.course.generate              # solutions/ -> notebooks/
+    python -m pytest tests/test_course.py            # skeleton + learner notebooks in sync
+    python -m pytest tests/test_notebooks.py -k NN   # run chapter NN, both versions, under nbval
+
+Ship notebooks without outputs (``jupyter nbconvert --clear-output --inplace``, or build
+them with :func:`masp_lite.course.authoring.notebook`).
+"""
+from .checking import RESULTS, Outcome, assert_passed, check, compare
+from .session import FAST_ENV, fast_mode, setup, show
+
+__all__ = ["check", "assert_passed", "compare", "Outcome", "RESULTS", "fast_mode", "setup", "show",
+           "FAST_ENV"]

@@ -1,0 +1,186 @@
+"""Course machinery: exercise checks, fast mode, skeleton of every chapter, learner notebooks in sync."""
+from pathlib import Path
+
+import nbformat
+import numpy as np
+import pytest
+import torch
+
+import masp_lite.course as course
+from masp_lite.course import authoring, generate
+
+ROOT = Path(__file__).resolve().parents[1]
+SOLUTIONS = sorted((ROOT / "solutions").glob("*.ipynb"))
+
+
+# ------------------------------------------------------------------ check()
+def _ref(x, scale=2.0):
+    return {"y": x * scale, "n": int(x.numel())}
+
+
+def _cases(seed):
+    g = torch.Generator().manual_seed(seed)
+    return (torch.rand(3, 2, generator=g),)
+
+
+def test_check_passes_and_returns_learners_function(capsys):
+    mine = lambda x, scale=2.0: {"n": int(x.numel()), "y": scale * x}  # noqa: E731
+    got = course.check(mine, _ref, inputs=_cases, name="scale")
+    assert got is mine
+    assert capsys.readouterr().out.startswith("✓ scale passed (3 cases)")
+    course.assert_passed("scale")
+
+
+def test_check_failure_names_first_mismatch_and_falls_back(capsys):
+    def wrong(x, scale=2.0):
+        y = x * scale
+        y[1, 0] += 0.5
+        return {"y": y, "n": int(x.numel())}
+
+    got = course.check(wrong, _ref, inputs=_cases, name="scale-bad")
+    out = capsys.readouterr().out
+    assert got is _ref
+    assert out.startswith("✗ scale-bad failed on case 0: output['y'][1, 0]: got")
+    assert "1 of 6 entries differ" in out
+    with pytest.raises(AssertionError, match="scale-bad: failed"):
+        course.assert_passed("scale-bad")
+    with pytest.raises(AssertionError):
+        course.check(wrong, _ref, inputs=_cases, name="scale-bad", strict=True)
+
+
+def test_check_not_attempted_and_errors_never_raise(capsys):
+    def stub(x):
+        raise NotImplementedError()
+
+    def broken(x):
+        return x.nope
+
+    assert course.check(stub, _ref, inputs=_cases, name="stub") is _ref
+    assert "… stub: not attempted yet (NotImplementedError)" in capsys.readouterr().out
+    assert course.RESULTS["stub"].status == "not attempted"
+    assert course.check(broken, _ref, inputs=_cases, name="broken") is _ref
+    assert "raised AttributeError" in capsys.readouterr().out
+
+
+def test_check_isolates_inputs_between_calls():
+    def mutating(x, scale=2.0):
+        x.mul_(0)  # in place: must not change what the reference sees
+        return _ref(torch.ones(3, 2), scale)
+
+    course.check(mutating, _ref, inputs=[(torch.ones(3, 2),)], name="mutating")
+    assert course.RESULTS["mutating"].passed
+
+
+def test_compare_structures_and_tolerances():
+    assert course.compare(np.array([1.0, 2.0]), np.array([1.0, 2.0 + 1e-9])) is None
+    assert "got shape (2,), expected (3,)" in course.compare(np.zeros(2), np.zeros(3))
+    assert "got 2 items, expected 3" in course.compare([1, 2], [1, 2, 3])
+    assert "keys differ" in course.compare({"a": 1}, {"b": 1})
+    assert "got a list, expected a tensor" in course.compare([1.0], torch.ones(1))
+    assert course.compare(torch.tensor(0.5), 0.5) is None
+    assert "expected 0.6" in course.compare(0.5, 0.6)
+    assert "got True" in course.compare(torch.tensor([True]), torch.tensor([False]))
+
+
+def test_check_rejects_bad_arguments():
+    with pytest.raises(ValueError, match="expected two functions"):
+        course.check(1, _ref, inputs=_cases, name="x")
+    with pytest.raises(ValueError, match="non-empty list of cases"):
+        course.check(_ref, _ref, inputs=[], name="x")
+    with pytest.raises(ValueError, match="exercise name"):
+        course.check(_ref, _ref, inputs=_cases, name="")
+    with pytest.raises(AssertionError, match="not checked yet"):
+        course.assert_passed("never-checked")
+
+
+# ------------------------------------------------------------ session helpers
+def test_fast_mode_reads_environment(monkeypatch):
+    monkeypatch.setenv(course.FAST_ENV, "1")
+    assert course.fast_mode() is True
+    monkeypatch.setenv(course.FAST_ENV, "0")
+    assert course.fast_mode() is False
+    monkeypatch.delenv(course.FAST_ENV)
+    assert course.fast_mode() is False  # learners get full budgets by default
+    monkeypatch.setenv(course.FAST_ENV, "maybe")
+    with pytest.raises(ValueError, match="expected 1"):
+        course.fast_mode()
+
+
+def test_setup_seeds_everything_and_sets_threads():
+    before = torch.get_num_threads()
+    try:
+        course.setup(seed=3, threads=1)
+        a = (torch.rand(2), np.random.rand(2))
+        course.setup(seed=3, threads=1)
+        b = (torch.rand(2), np.random.rand(2))
+        assert torch.equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+        assert torch.get_num_threads() == 1
+        with pytest.raises(ValueError, match="seed"):
+            course.setup(seed=-1)
+    finally:
+        torch.set_num_threads(before)
+
+
+def test_show_returns_source_of_library_code():
+    shown = course.show(course.check)
+    assert "def check(" in getattr(shown, "data", shown)
+    with pytest.raises(ValueError, match="with source"):
+        course.show(3)
+
+
+# --------------------------------------------------------- authoring + generate
+def _toy_notebook():
+    A = authoring
+    return A.notebook([
+        A.markdown("# Chapter 99: Toy"),
+        A.markdown("## Objectives\n- add numbers\n\nPrerequisites: none."),
+        A.markdown("## Setup"),
+        A.code("import masp_lite.course as course\ncourse.setup(seed=0)\nFAST = course.fast_mode()"),
+        A.markdown("## Section 1: Adding (~5 min)"),
+        A.code("print(1 + 1)"),
+        A.markdown("## Summary\nDone."),
+        A.markdown("## Exercises"),
+        A.solution("def add(a, b):\n    ### BEGIN SOLUTION\n    return a + b\n    ### END SOLUTION", "add"),
+        A.graded("added = course.check(add, lambda a, b: a + b, inputs=[(1, 2)], name='add')\n"
+                 "course.assert_passed('add')", "check_add", points=1),
+    ])
+
+
+def test_toy_notebook_has_the_skeleton_and_a_broken_one_does_not():
+    nb = _toy_notebook()
+    assert authoring.problems(nb) == []
+    nb.cells = [c for c in nb.cells if not c.source.startswith("## Summary")]
+    assert any("## Summary" in p for p in authoring.problems(nb))
+    with pytest.raises(ValueError, match="BEGIN SOLUTION"):
+        authoring.solution("def f(): pass", "f")
+    with pytest.raises(ValueError, match="grade_id"):
+        authoring.graded("assert True", "bad id")
+
+
+def test_learner_version_has_stubs_tags_and_no_solutions(tmp_path):
+    src = tmp_path / "99_toy.ipynb"
+    nbformat.write(_toy_notebook(), src)
+    out = generate.generate(src, tmp_path / "learner")
+    learner = nbformat.read(out, as_version=4)
+    sol = learner.cells[8]
+    assert "return a + b" not in sol.source and "raise NotImplementedError()" in sol.source
+    compile(sol.source, "stub", "exec")  # stubs stay valid Python
+    grade = learner.cells[9]
+    assert "raises-exception" in grade.metadata["tags"]
+    assert grade.metadata["editable"] is False and len(grade.metadata["nbgrader"]["checksum"]) == 32
+    with pytest.raises(ValueError, match="instructor notebook"):
+        generate.generate(tmp_path / "missing.ipynb", tmp_path)
+
+
+# ------------------------------------------------------------ shipped chapters
+@pytest.mark.parametrize("path", SOLUTIONS, ids=[p.stem for p in SOLUTIONS])
+def test_chapter_skeleton(path):
+    nb = nbformat.read(path, as_version=4)
+    assert authoring.problems(nb) == []
+
+
+def test_learner_notebooks_are_in_sync_with_solutions():
+    assert SOLUTIONS, "expected instructor notebooks in solutions/"
+    assert generate.stale() == [], "run: python -m masp_lite.course.generate"
+    shipped = sorted(p.name for p in (ROOT / "notebooks").glob("*.ipynb"))
+    assert shipped == [p.name for p in SOLUTIONS], "every learner notebook needs an instructor version"
