@@ -184,3 +184,28 @@ def test_model_saves_and_reloads(tmp_path):
     assert m.body_mass[1] == pytest.approx(HUMMINGBIRD["mass"])
     assert np.allclose(m.body_inertia[1], HUMMINGBIRD["inertia"])
     assert build_model(2).nu == 8
+
+
+def test_pettingzoo_face_passes_the_api_and_seed_tests():
+    from pettingzoo.test import parallel_api_test, parallel_seed_test
+
+    from masp_lite.envs import parallel_env
+    env = parallel_env("drone-5")
+    assert type(env).__name__ == "DroneParallelEnv"
+    parallel_api_test(env, num_cycles=60)
+    parallel_seed_test(lambda: parallel_env("drone-5"))
+
+
+def test_pettingzoo_reset_options_and_bad_actions():
+    from masp_lite.envs import parallel_env
+    env = parallel_env("drone-5")
+    start = np.array([[-2.0, -2.0, 1.5], [-1.0, -2.0, 1.5], [0, -2.0, 1.5], [1.0, -2.0, 1.5], [2.0, -2.0, 1.5]])
+    obs, _ = env.reset(seed=0, options={"agent_pos": start})
+    assert obs["drone_3"][:3].tolist() == pytest.approx([1.0, -2.0, 1.5])
+    assert env.observation_space("drone_0").shape == (59,)
+    with pytest.raises(ValueError, match=r"\[-1, 1\]"):
+        env.step({a: np.full(4, 2.0) for a in env.agents})
+    with pytest.raises(ValueError, match="one action"):
+        env.step({"drone_0": np.zeros(4)})
+    with pytest.raises(ValueError, match="render_mode"):
+        parallel_env("drone-5", render_mode="human")
