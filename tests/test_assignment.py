@@ -1,0 +1,79 @@
+"""Hungarian assignment: optimality against brute force, rectangular cases, masks, seeds."""
+import itertools
+
+import numpy as np
+import pytest
+import torch
+
+from masp_lite.algos.assignment import assignment_cost, hungarian, hungarian_random_subset
+
+
+def brute_force(a, g):
+    """Least total distance over all injective maps of the smaller side into the larger."""
+    n, m = len(a), len(g)
+    d = np.linalg.norm(a[:, None] - g[None], axis=-1)
+    if n <= m:
+        return min(sum(d[i, p[i]] for i in range(n)) for p in itertools.permutations(range(m), n))
+    return min(sum(d[p[j], j] for j in range(m)) for p in itertools.permutations(range(n), m))
+
+
+@pytest.mark.parametrize("n,m,d", [(4, 4, 2), (5, 5, 3), (3, 5, 2), (5, 3, 2), (1, 4, 3)])
+def test_matches_brute_force(n, m, d):
+    rng = np.random.default_rng(n * 10 + m)
+    a = torch.from_numpy(rng.normal(size=(6, n, d)))
+    g = torch.from_numpy(rng.normal(size=(6, m, d)))
+    out = hungarian(a, g)
+    assert out.shape == (6, n) and out.dtype == torch.long
+    cost = assignment_cost(a, g, out)
+    for b in range(6):
+        assigned = out[b][out[b] >= 0]
+        assert len(set(assigned.tolist())) == len(assigned) == min(n, m)  # distinct goals
+        assert cost[b].item() == pytest.approx(brute_force(a[b].numpy(), g[b].numpy()), rel=1e-9)
+    if n > m:
+        assert ((out == -1).sum(1) == n - m).all()  # extra agents get no goal
+
+
+def test_masks_exclude_agents_and_goals():
+    a = torch.tensor([[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]])
+    g = torch.tensor([[[0.0, 0.1], [1.0, 0.1], [2.0, 0.1]]])
+    out = hungarian(a, g, agent_mask=torch.tensor([[True, False, True]]),
+                    goal_mask=torch.tensor([[False, True, True]]))
+    assert out.tolist() == [[1, -1, 2]]
+    # nothing available -> everyone -1
+    none = hungarian(a, g, goal_mask=torch.zeros(1, 3, dtype=torch.bool))
+    assert none.tolist() == [[-1, -1, -1]]
+
+
+def test_random_subset_draws_subset_then_assigns():
+    rng = np.random.default_rng(0)
+    a = torch.from_numpy(rng.uniform(size=(50, 2, 2)))
+    g = torch.from_numpy(rng.uniform(size=(50, 6, 2)))
+    gmask = torch.ones(50, 6, dtype=torch.bool)
+    gmask[:, 0] = False  # goal 0 reached: never drawn
+    out1 = hungarian_random_subset(a, g, goal_mask=gmask, generator=torch.Generator().manual_seed(3))
+    out2 = hungarian_random_subset(a, g, goal_mask=gmask, generator=torch.Generator().manual_seed(3))
+    assert torch.equal(out1, out2)  # same generator state, same answer
+    assert (out1 >= 1).all() and (out1[:, 0] != out1[:, 1]).all()
+    # random, not the least-cost subset: some worlds must differ from plain Hungarian
+    assert (out1 != hungarian(a, g, goal_mask=gmask)).any()
+    # each subset is drawn uniformly: over many worlds every available goal gets used
+    assert set(out1.flatten().tolist()) == {1, 2, 3, 4, 5}
+    # with a numpy generator too; more agents than goals behaves as hungarian
+    many = hungarian_random_subset(g, a, generator=np.random.default_rng(1))
+    assert torch.equal(many, hungarian(g, a))
+
+
+def test_device_dtype_and_bad_input():
+    a = torch.zeros(2, 3, 2, dtype=torch.float32)
+    g = torch.ones(2, 3, 2, dtype=torch.float32)
+    assert assignment_cost(a, g, hungarian(a, g)).dtype == torch.float32
+    with pytest.raises(ValueError, match="point dimension"):
+        hungarian(a, torch.zeros(2, 3, 3))
+    with pytest.raises(ValueError, match="3-d"):
+        hungarian(torch.zeros(3, 2), g)
+    with pytest.raises(ValueError, match="agent_mask"):
+        hungarian(a, g, agent_mask=torch.ones(2, 4, dtype=torch.bool))
+    with pytest.raises(ValueError, match="generator"):
+        hungarian_random_subset(a, g, generator=0)
+    with pytest.raises(ValueError, match="goal indices"):
+        assignment_cost(a, g, torch.full((2, 3), 3))

@@ -1,0 +1,106 @@
+"""Metrics on hand-built episodes, rollout timing/determinism, evaluate records, tables."""
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from masp_lite.envs import make
+from masp_lite.eval import (EpisodeLog, collision_rate, evaluate, format_table, parse_value,
+                            rollout, steps, success_rate)
+from masp_lite.methods.reference import RandomPolicy
+
+
+def log_of(covered, reached=None, collisions=None, varying=False, horizon=None):
+    """An EpisodeLog from a (E, T+1, L) list/array of coverage; alive all true."""
+    cov = torch.as_tensor(np.asarray(covered, dtype=bool))
+    E, T1, L = cov.shape
+    rea = cov.cummax(dim=1).values if reached is None else torch.as_tensor(np.asarray(reached, dtype=bool))
+    col = torch.zeros(E, T1 - 1, dtype=torch.long) if collisions is None else torch.as_tensor(collisions)
+    return EpisodeLog(cov, rea, col, torch.ones(E, T1, 3, dtype=torch.bool), varying=varying,
+                      horizon=T1 - 1 if horizon is None else horizon)
+
+
+def test_steps_first_step_all_covered():
+    T, L = 10, 3
+    cov = np.zeros((3, T + 1, L), dtype=bool)
+    cov[0, 7:] = True            # all covered from t = 7 on -> Steps 7, SR 1
+    cov[1, :, :2] = True         # one landmark never covered -> horizon, SR 2/3
+    cov[2, 4, :] = True          # all covered only at t = 4, lost afterwards -> Steps 4, SR 0
+    cov[2, 5:, 0] = True
+    log = log_of(cov)
+    assert steps(log).tolist() == [7.0, 10.0, 4.0]
+    assert success_rate(log).tolist() == pytest.approx([1.0, 2 / 3, 1 / 3])
+
+
+def test_steps_zero_when_solved_at_spawn_and_not_simultaneous():
+    cov = np.ones((1, 5, 2), dtype=bool)
+    assert steps(log_of(cov)).tolist() == [0.0]
+    # fixed team: landmarks covered at different times, never together -> horizon
+    cov = np.zeros((1, 5, 2), dtype=bool)
+    cov[0, 1, 0] = cov[0, 3, 1] = True
+    assert steps(log_of(cov)).tolist() == [4.0]
+    # the same episode under the varying-team rule counts "ever reached": done at t = 3
+    assert steps(log_of(cov, varying=True)).tolist() == [3.0]
+    assert success_rate(log_of(cov, varying=True)).tolist() == [1.0]
+    assert success_rate(log_of(cov)).tolist() == [0.0]
+
+
+def test_collision_rate_counts_events_per_step():
+    cov = np.zeros((2, 5, 2), dtype=bool)
+    col = torch.tensor([[0, 2, 1, 0], [0, 0, 0, 0]])
+    assert collision_rate(log_of(cov, collisions=col)).tolist() == [0.75, 0.0]
+
+
+def test_log_validates_shapes():
+    with pytest.raises(ValueError, match="collisions"):
+        EpisodeLog(torch.zeros(1, 3, 2, dtype=torch.bool), torch.zeros(1, 3, 2, dtype=torch.bool),
+                   torch.zeros(1, 3, dtype=torch.long), torch.ones(1, 3, 2, dtype=torch.bool),
+                   varying=False, horizon=2)
+
+
+def test_rollout_matches_world_and_is_deterministic():
+    world = make("mpe-5", num_envs=4, seed=0, horizon=6)
+    log, dt = rollout(world, RandomPolicy(world, seed=1), episodes=6, seed=2)
+    assert log.covered.shape == (6, 7, 5) and log.collisions.shape == (6, 6) and dt > 0
+    world2 = make("mpe-5", num_envs=4, seed=9, horizon=6)
+    log2, _ = rollout(world2, RandomPolicy(world2, seed=1), episodes=6, seed=2)
+    assert torch.equal(log.covered, log2.covered) and torch.equal(log.collisions, log2.collisions)
+    # the log replays the world: the last batch's final coverage is the world's
+    assert torch.equal(log.covered[4:, -1], world.covered[:2])
+
+
+def test_evaluate_record_and_table():
+    rec = evaluate("random", "mpe-5", episodes=3, seeds=(0, 1), overrides={"horizon": 4})
+    assert set(rec) >= {"method", "scenario", "seeds", "episodes_per_seed", "sr", "steps", "cr",
+                        "decision_ms"}
+    assert rec["seeds"] == [0, 1] and rec["episodes_per_seed"] == 3
+    json.dumps(rec)  # serialisable
+    assert rec["steps"] == {"mean": None, "std": None}  # random never covers all in 4 steps
+    text = format_table([rec])
+    assert "\\" in text.splitlines()[-1] and "random" in text
+    assert r"$\backslash$" in format_table(rec, fmt="latex")
+
+
+def test_table_format_two_decimals():
+    rec = {"method": "m", "scenario": "mpe-5", "steps": {"mean": 7.544, "std": 1.371},
+           "sr": {"mean": 1.0, "std": 0.0}, "cr": {"mean": 0.47, "std": 0.012},
+           "decision_ms": {"mean": 14.0, "std": 0.5}}
+    row = format_table([rec], fmt="text").splitlines()[1]
+    assert "7.54 (1.37)" in row and "1.00 (0.00)" in row and "0.47 (0.01)" in row
+    assert "7.54\\scriptsize{(1.37)}" in format_table([rec], fmt="latex")
+    with pytest.raises(ValueError, match="fmt"):
+        format_table([rec], fmt="html")
+
+
+def test_parse_value():
+    assert [parse_value(x) for x in ("3", "0.5", "True", "none", "abc")] == [3, 0.5, True, None, "abc"]
+
+
+def test_evaluate_bad_input():
+    with pytest.raises(ValueError, match="h-greedy"):
+        evaluate("nope", "mpe-5", episodes=1)
+    with pytest.raises(ValueError, match="unknown option"):
+        evaluate("random", "mpe-5", episodes=1, method_options={"speed": 2})
+    with pytest.raises(ValueError, match="checkpoint"):
+        evaluate("random", "mpe-5", episodes=1, checkpoint="x.pt")

@@ -1,0 +1,76 @@
+"""Reference methods: the MPE velocity controller, random and h-greedy policies."""
+import pytest
+import torch
+
+from masp_lite.envs import PHYSICS, make
+from masp_lite.eval import rollout, steps, success_rate
+from masp_lite.methods import make_policy
+from masp_lite.methods.reference import MAX_SPEED, braking_speed, velocity_to_action
+
+
+def test_velocity_to_action_picks_the_closest_next_velocity():
+    vel = torch.zeros(5, 2)
+    desired = torch.tensor([[0.0, 0.0], [-1.0, 0.1], [1.0, -0.1], [0.1, -1.0], [0.0, 1.0]])
+    assert velocity_to_action(vel, desired).tolist() == [0, 1, 2, 3, 4]
+    # moving fast in +x with a zero target: the -x action brakes hardest
+    assert velocity_to_action(torch.tensor([[2.0, 0.0]]), torch.zeros(1, 2)).tolist() == [1]
+    with pytest.raises(ValueError, match="equal shapes"):
+        velocity_to_action(torch.zeros(3, 2), torch.zeros(3, 3))
+
+
+def test_braking_speed_stops_within_the_distance():
+    assert MAX_SPEED == pytest.approx(2.0)
+    d = torch.linspace(0.0, 1.0, 41, dtype=torch.float64)
+    v = braking_speed(d)
+    assert (v[1:] >= v[:-1]).all() and v[0] == 0 and v[-1] == pytest.approx(MAX_SPEED)
+    # simulate full braking from v: travelled distance (continuous steps) stays within d
+    c, u = 1 - PHYSICS["damping"], MAX_SPEED
+    speed, travelled = v.clone(), torch.zeros_like(v)
+    for _ in range(30):
+        travelled += PHYSICS["dt"] * speed.clamp(min=0)
+        speed = (c * speed - u * (1 - c)).clamp(min=0)
+    uncapped = v < MAX_SPEED - 1e-6
+    assert (travelled[uncapped] <= d[uncapped] + 0.03).all()
+
+
+def test_random_policy_is_seeded():
+    w = make("mpe-5", num_envs=3, seed=0)
+    a1 = make_policy("random", w, seed=4).act(w.observe())
+    a2 = make_policy("random", w, seed=4).act(w.observe())
+    assert torch.equal(a1, a2) and a1.shape == (3, 5) and a1.dtype == torch.long
+    with pytest.raises(ValueError, match="seed"):
+        make_policy("random", w, seed="x")
+
+
+def test_h_greedy_solves_mpe5():
+    # without obstacles the straight line always works: every episode covers every landmark
+    w = make("mpe-5", num_envs=8, seed=0, num_obstacles=0)
+    log, _ = rollout(w, make_policy("h-greedy", w), episodes=8, seed=0)
+    assert success_rate(log).min().item() == 1.0
+    assert steps(log).max().item() < w.horizon
+    # with the paper's 5 obstacles an agent can get stuck behind one now and then
+    w = make("mpe-5", num_envs=16, seed=0)
+    log, _ = rollout(w, make_policy("h-greedy", w), episodes=16, seed=1)
+    assert success_rate(log).mean().item() >= 0.9
+
+
+def test_h_greedy_on_paper_scenarios_mostly_succeeds():
+    w = make("mpe-20", num_envs=16, seed=0)
+    log, _ = rollout(w, make_policy("h-greedy", w), episodes=16, seed=1)
+    assert success_rate(log).mean().item() >= 0.95
+    w = make("mpe-20to10", num_envs=16, seed=0)
+    log, _ = rollout(w, make_policy("h-greedy", w), episodes=16, seed=1)
+    assert success_rate(log).mean().item() >= 0.95 and log.alive[:, -1].sum(1).eq(10).all()
+
+
+def test_h_greedy_reassigns_every_global_step_and_validates():
+    w = make("mpe-5", num_envs=2, seed=0)
+    p = make_policy("h-greedy", w, global_step=3)
+    obs = w.reset(seed=0)
+    p.reset(obs)
+    p.act(obs)
+    assert p.assignment.shape == (2, 5) and sorted(p.assignment[0].tolist()) == [0, 1, 2, 3, 4]
+    with pytest.raises(ValueError, match="global_step"):
+        make_policy("h-greedy", w, global_step=0)
+    with pytest.raises(ValueError, match="unknown option"):
+        make_policy("h-greedy", w, speed=3)
