@@ -66,6 +66,17 @@ def test_observation_layout_matches_the_docstring_table():
     assert env.world.num_envs == 1
 
 
+def test_global_state_is_every_body_absolute():
+    env = parallel_env("mpe-20to10", num_obstacles=3)
+    env.reset(seed=1)
+    for _ in range(env.scenario.change_step):
+        env.step({a: 4 for a in env.agents})
+    s, w = env.state(), env.world
+    assert env.state_space.contains(s) and s.shape == (7 * 20 + 2 * 3,)
+    np.testing.assert_array_equal(s[:40], w.agent_pos[0].numpy().ravel())
+    assert s[80:100].sum() == env.scenario.team_after and s[-6:].tolist() == w.obstacle_pos[0].ravel().tolist()
+
+
 def test_team_change_terminates_dropped_agents_once_and_truncates_the_rest():
     env = parallel_env("mpe-20to10")
     sc = env.scenario

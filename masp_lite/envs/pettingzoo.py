@@ -12,6 +12,7 @@ Observation               ``Box(-inf, inf, (7N - 1 + 2K,), float32)`` per agent,
 Reward                    simple_spread's, see below
 Termination               an agent dropped by a team-size change, at the step it leaves
 Truncation                every remaining agent at step ``horizon``
+State                     ``state()``: all positions, velocities, alive flags; ``(7N + 2K,)``
 ========================  ===============================================================
 
 Observation of agent ``i`` (``N`` agents = landmarks, ``K`` obstacles), in this order;
@@ -106,6 +107,7 @@ class ParticleParallelEnv(ParallelEnv):
         self.observation_spaces = {a: gymnasium.spaces.Box(-np.inf, np.inf, (dim,), np.float32)
                                    for a in self.possible_agents}
         self.action_spaces = {a: gymnasium.spaces.Discrete(NUM_ACTIONS) for a in self.possible_agents}
+        self.state_space = gymnasium.spaces.Box(-np.inf, np.inf, (7 * N + 2 * K,), np.float32)
         # others[i] = the indices j != i in order: the "other agents" blocks of agent i
         self._others = np.array([[j for j in range(N) if j != i] for i in range(N)], dtype=np.int64)
         self._others = self._others.reshape(N, N - 1)
@@ -189,6 +191,13 @@ class ParticleParallelEnv(ParallelEnv):
         return out
 
     # ---------------------------------------------------------- observing
+    def state(self) -> np.ndarray:
+        """Global state for centralized critics: every agent's position, velocity and alive flag,
+        then landmark and obstacle positions, all absolute: ``(7N + 2K,)`` float32."""
+        w = self._world
+        parts = [w.agent_pos[0], w.agent_vel[0], w.alive[0, :, None], w.landmark_pos[0], w.obstacle_pos[0]]
+        return np.concatenate([p.to(torch.float32).numpy().ravel() for p in parts]).astype(np.float32)
+
     def _observe(self) -> np.ndarray:
         """Every agent's observation as one (N, 7N - 1 + 2K) float32 array."""
         w = self._world
