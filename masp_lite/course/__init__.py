@@ -32,13 +32,14 @@ chapter must run in about a minute on 2 cores (3 minutes at most).
 
 and the graded check cell (nbgrader ``grade: true``, ``points``)::
 
-    contact = course.check(my_contact_force, particle.contact_force,
-                           inputs=cases, name="contact force")
+    contact_fn = course.check(my_contact_force, particle.contact_force,
+                              inputs=contact_cases, name="contact force")
     course.assert_passed("contact force")
 
 :func:`check` prints ``✓``/``✗``/``…`` and returns the learner's function when it passed,
-the library's otherwise — later cells use ``contact``, so a learner who skips still runs
-the chapter. :func:`assert_passed` makes the cell fail for ``nbgrader autograde`` until
+the library's otherwise — later cells use ``contact_fn``, so a learner who skips still
+runs the chapter. Bind the result to a *new* name: re-running the cell must compare the
+learner's function again, not the fallback with itself. :func:`assert_passed` makes the cell fail for ``nbgrader autograde`` until
 the exercise is solved; in the learner version the generator tags graded cells
 ``raises-exception`` so "Run All" and nbval go on past them. ``inputs`` is a list of cases
 (tuple = positional arguments, dict = keyword arguments) or a function ``seed -> case``.
