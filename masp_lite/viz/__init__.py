@@ -1,0 +1,4 @@
+"""Playback: 2-D matplotlib animations (:mod:`.anim2d`), 3-D meshcat scenes, the ``play`` command.
+
+Submodules are imported on demand so that importing the package loads no plotting library.
+"""

@@ -1,0 +1,145 @@
+"""2-D playback of particle-world episodes with matplotlib.
+
+:func:`record` runs one episode of a policy and keeps, per step, a *frame*: a dict of
+numpy arrays for one world of the batch. :func:`draw_frame` draws a frame on an axes,
+:func:`animate` turns frames into a ``matplotlib.animation.FuncAnimation`` (in JupyterLab:
+``IPython.display.HTML(anim.to_jshtml())``), and :func:`save` writes it as ``.gif``
+(pillow) or ``.mp4`` (the ffmpeg binary shipped by ``imageio-ffmpeg``).
+
+What a frame shows, all circles to scale on the ``[-ws/2, ws/2]`` map:
+
+* landmarks — small rings, filled green while covered, grey once reached (varying teams);
+* obstacles — dark grey discs;
+* agents — blue when they have a goal (a thin dotted line joins agent and goal when the
+  policy exposes ``assignment``), light blue without one, pale dashed outlines once
+  dropped from the team; red for the step in which they are in contact;
+* a title with the step, the success rate so far (fixed teams: covered now; varying
+  teams: ever reached) and the collision rate so far, as in :mod:`masp_lite.eval`.
+
+Frame keys: ``agent_pos`` (N, 2), ``landmark_pos`` (L, 2), ``obstacle_pos`` (K, 2),
+``alive`` (N,), ``covered`` (L,), ``reached`` (L,), ``agent_collisions`` (N,),
+``collisions`` (events so far), ``assignment`` (N,) or ``None``, ``t``, ``horizon``,
+``varying``, ``world_size`` and the three radii.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+import torch
+
+__all__ = ["record", "draw_frame", "animate", "save"]
+
+COLOURS = {"agent": "#1f77b4", "idle": "#9ecae1", "dropped": "#d9d9d9", "hit": "#d62728",
+           "landmark": "#31a354", "reached": "#bdbdbd", "obstacle": "#525252"}
+
+
+def _frame(world, policy, obs, info, b: int, collisions_so_far: int) -> dict:
+    sc = world.scenario
+    np_ = lambda x: x[b].detach().cpu().numpy().copy()  # noqa: E731
+    assignment = getattr(policy, "assignment", None)
+    return {
+        "agent_pos": np_(obs["agent_pos"])[:, :2], "landmark_pos": np_(obs["landmark_pos"])[:, :2],
+        "obstacle_pos": np_(obs["obstacle_pos"])[:, :2] if "obstacle_pos" in obs else np.zeros((0, 2)),
+        "alive": np_(obs["alive"]), "covered": np_(obs["covered"]), "reached": np_(obs["reached"]),
+        "agent_collisions": np_(info["agent_collisions"]) if info is not None and "agent_collisions" in info
+        else np.zeros(world.num_agents, dtype=np.int64),
+        "collisions": int(collisions_so_far),
+        "assignment": np_(assignment) if torch.is_tensor(assignment) else None,
+        "t": int(obs["t"][b]), "horizon": int(world.horizon), "varying": bool(sc.varying),
+        "world_size": float(sc.world_size), "agent_radius": sc.agent_radius,
+        "landmark_radius": sc.landmark_radius, "obstacle_radius": sc.obstacle_radius,
+    }
+
+
+def record(world, policy, seed: int | None = 0, env_index: int = 0) -> list[dict]:
+    """Run one episode of ``policy`` on ``world`` (all its worlds step) and keep world ``env_index``.
+
+    Returns ``horizon + 1`` frames (the reset state, then one per step). The assignment
+    shown with a frame is the one the policy acted on to leave that state, so the first
+    frame has none unless the policy set it in ``reset``.
+    """
+    if not 0 <= env_index < world.num_envs:
+        raise ValueError(f"env_index: expected an index in [0, {world.num_envs}), got {env_index}")
+    obs = world.reset(seed=seed)
+    policy.reset(obs)
+    frames = [_frame(world, policy, obs, None, env_index, 0)]
+    collisions = 0
+    while not bool(world.done.all()):
+        obs, info = world.step(policy.act(obs))
+        collisions += int(info["collisions"][env_index])
+        frames.append(_frame(world, policy, obs, info, env_index, collisions))
+    return frames
+
+
+def draw_frame(ax, frame: dict) -> None:
+    """Draw one frame on ``ax`` (cleared first)."""
+    from matplotlib.patches import Circle
+
+    ax.clear()
+    half = frame["world_size"] / 2
+    ax.set_xlim(-half, half)
+    ax.set_ylim(-half, half)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    done = frame["reached"] if frame["varying"] else frame["covered"]
+    for p, cov, rea in zip(frame["landmark_pos"], frame["covered"], frame["reached"]):
+        face = COLOURS["landmark"] if cov else COLOURS["reached"] if (rea and frame["varying"]) else "none"
+        ax.add_patch(Circle(p, frame["landmark_radius"], facecolor=face, edgecolor=COLOURS["landmark"], lw=1))
+    for p in frame["obstacle_pos"]:
+        ax.add_patch(Circle(p, frame["obstacle_radius"], color=COLOURS["obstacle"]))
+    assignment = frame.get("assignment")
+    for i, (p, alive) in enumerate(zip(frame["agent_pos"], frame["alive"])):
+        has_goal = assignment is not None and assignment[i] >= 0
+        if not alive:
+            ax.add_patch(Circle(p, frame["agent_radius"], facecolor="none", edgecolor=COLOURS["dropped"],
+                                ls="--", lw=1))
+            continue
+        colour = COLOURS["hit"] if frame["agent_collisions"][i] > 0 else \
+            COLOURS["agent"] if (has_goal or assignment is None) else COLOURS["idle"]
+        ax.add_patch(Circle(p, frame["agent_radius"], color=colour, alpha=0.85))
+        if has_goal:
+            g = frame["landmark_pos"][assignment[i]]
+            ax.plot([p[0], g[0]], [p[1], g[1]], ls=":", lw=0.8, color=COLOURS["agent"])
+    t = frame["t"]
+    sr = float(np.mean(done)) if len(done) else 1.0
+    cr = frame["collisions"] / t if t else 0.0
+    ax.set_title(f"t = {t}/{frame['horizon']}   SR = {sr:.2f}   CR = {cr:.2f}", fontsize=10)
+
+
+def animate(frames: list[dict], interval: int = 150, figsize=(5.0, 5.0)):
+    """A ``FuncAnimation`` of ``frames`` (``interval`` ms per frame); the figure is closed
+    so notebooks show only the animation (``HTML(anim.to_jshtml())``)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation
+
+    if not frames:
+        raise ValueError("frames: expected at least one frame (see record())")
+    fig, ax = plt.subplots(figsize=figsize)
+    fig.subplots_adjust(left=0.02, right=0.98, bottom=0.02, top=0.92)
+    anim = FuncAnimation(fig, lambda i: draw_frame(ax, frames[i]), frames=len(frames),
+                         interval=interval, repeat=False)
+    plt.close(fig)
+    return anim
+
+
+def save(anim, path, fps: int | None = None) -> Path:
+    """Write ``anim`` to ``path``: ``.gif`` with pillow, ``.mp4`` with imageio-ffmpeg's ffmpeg."""
+    from matplotlib.animation import FFMpegWriter, PillowWriter
+
+    path = Path(path)
+    fps = fps or max(1, round(1000 / getattr(anim, "_interval", 150)))
+    suffix = path.suffix.lower()
+    if suffix == ".gif":
+        writer = PillowWriter(fps=fps)
+    elif suffix == ".mp4":
+        import imageio_ffmpeg  # the ffmpeg binary ships with the wheel: no system ffmpeg needed
+        matplotlib.rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
+        writer = FFMpegWriter(fps=fps)
+    else:
+        raise ValueError(f"{path.name}: expected a .gif or .mp4 file name")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    anim.save(str(path), writer=writer)
+    return path

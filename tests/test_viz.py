@@ -1,0 +1,57 @@
+"""2-D playback: recorded frames, drawing, and the play command writing files."""
+import matplotlib
+import numpy as np
+import pytest
+from PIL import Image
+
+from masp_lite.__main__ import main
+from masp_lite.envs import make
+from masp_lite.methods import make_policy
+from masp_lite.viz.anim2d import animate, draw_frame, record, save
+
+
+def test_record_frames_follow_the_world():
+    w = make("mpe-20to10", num_envs=2, seed=0, horizon=9, change_step=3)
+    frames = record(w, make_policy("h-greedy", w), seed=1, env_index=1)
+    assert len(frames) == 10 and [f["t"] for f in frames] == list(range(10))
+    last = frames[-1]
+    np.testing.assert_array_equal(last["agent_pos"], w.agent_pos[1].numpy())
+    np.testing.assert_array_equal(last["covered"], w.covered[1].numpy())
+    assert last["alive"].sum() == 10 and frames[0]["alive"].all()
+    assert last["assignment"].shape == (20,) and last["varying"]
+    with pytest.raises(ValueError, match="env_index"):
+        record(w, make_policy("h-greedy", w), env_index=2)
+
+
+def test_draw_frame_draws_every_body_to_scale():
+    import matplotlib.pyplot as plt
+    w = make("mpe-5", num_envs=1, seed=0, horizon=3)
+    frames = record(w, make_policy("h-greedy", w), seed=0)
+    fig, ax = plt.subplots()
+    draw_frame(ax, frames[-1])
+    circles = [p for p in ax.patches if isinstance(p, matplotlib.patches.Circle)]
+    assert len(circles) == 5 + 5 + 5  # agents, landmarks, obstacles
+    assert sorted({round(c.radius, 3) for c in circles}) == [0.05, 0.1]
+    assert ax.get_title().startswith("t = 3/3")
+    plt.close(fig)
+
+
+def test_play_writes_a_small_gif(tmp_path, capsys):
+    out = tmp_path / "ep.gif"
+    rc = main(["play", "--method", "h-greedy", "--scenario", "mpe-5", "--out", str(out),
+               "--set", "horizon=4", "--seed", "3"])
+    assert rc == 0 and out.stat().st_size > 0
+    assert Image.open(out).n_frames == 5
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_save_mp4_and_bad_names(tmp_path, capsys):
+    w = make("mpe-5", num_envs=1, seed=0, horizon=2)
+    anim = animate(record(w, make_policy("random", w), seed=0))
+    assert save(anim, tmp_path / "ep.mp4").stat().st_size > 0
+    with pytest.raises(ValueError, match=".gif or .mp4"):
+        save(anim, tmp_path / "ep.png")
+    assert main(["play", "--method", "random", "--scenario", "mpe-5", "--out", str(tmp_path / "x.txt")]) == 2
+    assert "expected a .gif, .mp4 or .html" in capsys.readouterr().err
+    assert main(["play", "--method", "random", "--scenario", "drone-5", "--out", str(tmp_path / "x.gif")]) == 2
+    assert "drone scenario" in capsys.readouterr().err
