@@ -11,6 +11,11 @@ What is counted: one agent-step is one agent advanced by one environment step
 that reaches its horizon is reset, as in training), and so is drawing the random actions.
 Each measurement warms up for a few steps, then runs for ``--seconds`` of wall time.
 
+The machine's load average is printed before and after: torch's intra-op threads degrade
+badly when the cores are shared (on a busy 2-core machine, ``--threads 2`` measured ~25×
+slower than ``--threads 1``, while single-threaded mpe2 lost ~2×), so a ratio is only
+meaningful on an otherwise idle machine.
+
 Options: ``--seconds`` per measurement, ``--threads`` torch threads (default 2),
 ``--worlds`` the batch sizes, ``--json PATH`` to also write the figures as JSON.
 """
@@ -84,6 +89,14 @@ def measure_mpe2(seconds: float, num_agents: int = 50, horizon: int = 90, seed: 
     return steps * num_agents / elapsed
 
 
+def _load() -> float | None:
+    """One-minute load average (None where the OS does not report it)."""
+    try:
+        return round(os.getloadavg()[0], 2)
+    except (AttributeError, OSError):
+        return None
+
+
 def run(args: argparse.Namespace) -> int:
     if not args.seconds > 0:
         raise ValueError(f"--seconds: expected a positive number, got {args.seconds}")
@@ -92,8 +105,10 @@ def run(args: argparse.Namespace) -> int:
     if any(b < 1 for b in args.worlds):
         raise ValueError(f"--worlds: expected positive ints, got {args.worlds}")
     torch.set_num_threads(args.threads)
+    load_before = _load()
     print(f"bench env: {SCENARIO} (50 agents, 30 obstacles), random actions, resets included, "
-          f"{args.threads} thread(s), {args.seconds:g} s per measurement")
+          f"{args.threads} thread(s), {args.seconds:g} s per measurement, "
+          f"{os.cpu_count()} CPU(s), load average {load_before}")
     masp = {}
     for b in args.worlds:
         masp[b] = measure_masp(b, args.seconds)
@@ -107,8 +122,10 @@ def run(args: argparse.Namespace) -> int:
         base = RATIO_AT if RATIO_AT in masp else max(masp)
         ratio = masp[base] / ref
         print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x")
+    load_after = _load()
+    print(f"  load average after: {load_after}")
     if args.json:
-        result = {"target": "env", "scenario": SCENARIO, "num_agents": 50, "resets": "included",
+        result = {"load_average": {"before": load_before, "after": load_after}, "target": "env", "scenario": SCENARIO, "num_agents": 50, "resets": "included",
                   "actions": "random", "threads": args.threads, "seconds": args.seconds,
                   "torch": torch.__version__,
                   "masp_agent_steps_per_s": {str(b): v for b, v in masp.items()},
