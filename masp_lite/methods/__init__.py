@@ -19,6 +19,9 @@ __all__ = ["METHODS", "make_policy", "method_names"]
 METHODS: dict[str, str] = {
     "random": "masp_lite.methods.reference:RandomPolicy",
     "h-greedy": "masp_lite.methods.reference:HungarianGreedy",
+    "h-orca": "masp_lite.planners.methods:HOrca",
+    "h-rrtstar": "masp_lite.planners.methods:HRRTStar",
+    "h-voronoi": "masp_lite.planners.methods:HVoronoi",
 }
 
 
