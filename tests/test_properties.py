@@ -11,7 +11,7 @@ so ``2 * collisions - agent_collisions.sum() == AO``, the contacts with obstacle
 import numpy as np
 import pytest
 import torch
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from masp_lite.envs import make, parallel_env, scenario_names
@@ -27,14 +27,20 @@ def worlds(draw):
     k = draw(st.integers(0, 5))
     size = draw(st.floats(1.8, 3.0))
     horizon = draw(st.integers(2, 25))
-    overrides = dict(num_agents=n, num_obstacles=k, world_size=size, horizon=horizon)
+    overrides = dict(num_agents=n, num_obstacles=k, world_size=size, horizon=horizon,
+                     agent_radius=draw(st.sampled_from([0.1, 0.05, 0.17])),
+                     obstacle_radius=draw(st.sampled_from([0.1, 0.06, 0.15])))
     if draw(st.booleans()):
         overrides.update(team_after=draw(st.integers(1, n)), change_step=draw(st.integers(1, horizon - 1)))
     else:
         overrides.update(team_after=None)
     num_envs = draw(st.integers(1, 4))
     seed = draw(st.integers(0, 2**31 - 1))
-    return make(name, num_envs=num_envs, seed=seed, **overrides), seed
+    try:
+        return make(name, num_envs=num_envs, seed=seed, **overrides), seed
+    except ValueError as e:  # too crowded to place every body: not a world to test
+        assume("large" not in str(e))
+        raise
 
 
 def contacts(w):

@@ -16,7 +16,7 @@ State                     ``state()``: all positions, velocities, alive flags; `
 ========================  ===============================================================
 
 Observation of agent ``i`` (``N`` agents = landmarks, ``K`` obstacles), in this order;
-positions and velocities in metres and metres per step-second, "relative" means
+positions in metres, velocities in metres per second; "relative" means
 *other minus self*:
 
 ====================================  ==========  ====================================
