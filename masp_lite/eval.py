@@ -44,7 +44,7 @@ import numpy as np
 import torch
 
 __all__ = ["EpisodeLog", "success_rate", "steps", "collision_rate", "rollout", "evaluate",
-           "format_table", "parse_sets", "parse_value", "reached_target", "MAX_ENVS", "add_arguments", "run"]
+           "format_table", "parse_sets", "parse_value", "reached_target", "build_policy", "MAX_ENVS", "add_arguments", "run"]
 
 #: Most episodes run side by side in one batched world during evaluation.
 MAX_ENVS = 100
@@ -213,6 +213,14 @@ def _method_params(factory) -> tuple[set[str], bool]:
     return named, any(p.kind == p.VAR_KEYWORD for p in params)
 
 
+def build_policy(factory, method: str, world, options: dict):
+    """``factory(world, **options)``, with a wrong option reported as one ValueError."""
+    try:
+        return factory(world, **options)
+    except TypeError as e:
+        raise ValueError(f"method {method!r}: bad option(s) {sorted(options)} ({e})") from None
+
+
 def _stats(x: np.ndarray) -> dict:
     return {"mean": float(np.mean(x)), "std": float(np.std(x))}
 
@@ -237,7 +245,7 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     milliseconds per step of one world. ``steps`` is ``{"mean": None, "std": None}`` when
     no episode reaches SR 1 (the paper's backslash).
     """
-    from .envs import OVERRIDES, make
+    from .envs import OVERRIDES, get_scenario, make
     overrides = dict(overrides or {})
     options = dict(method_options or {})
     factory = _factory(method)
@@ -261,7 +269,7 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     bar = None
     if progress:
         from tqdm import tqdm
-        horizon = make(scenario, num_envs=1, device=device, seed=0, **overrides).horizon
+        horizon = get_scenario(scenario, **overrides).horizon
         bar = tqdm(total=len(seeds) * math.ceil(episodes / B) * horizon, unit="step",
                    desc=f"{method} on {scenario}", leave=False)
     logs, timings = [], []
@@ -271,7 +279,7 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
             opts = dict(options)
             if "seed" in named:
                 opts.setdefault("seed", s)
-            policy = factory(world, **opts)
+            policy = build_policy(factory, method, world, opts)
             log, dt = _rollout(world, policy, episodes, s, progress=bar)
             logs.append(log)
             timings.append(dt)

@@ -74,3 +74,9 @@ def test_h_greedy_reassigns_every_global_step_and_validates():
         make_policy("h-greedy", w, global_step=0)
     with pytest.raises(ValueError, match="unknown option"):
         make_policy("h-greedy", w, speed=3)
+
+
+def test_h_greedy_hands_drone_worlds_to_the_drone_controller():
+    drone_control = pytest.importorskip("masp_lite.planners.drone_control")
+    w = make("drone-5", num_envs=1, seed=0)
+    assert isinstance(make_policy("h-greedy", w), drone_control.DroneHungarianGreedy)

@@ -122,13 +122,14 @@ class HungarianGreedy:
     Agents without a goal brake to a stop. No collision avoidance.
 
     On a drone scenario the class hands over to
-    ``masp_lite.planners.drone_control.DroneHungarianGreedy(world, **options)``.
+    ``masp_lite.planners.drone_control.DroneHungarianGreedy(world, **options)`` (its own
+    options; ``global_step`` is a particle-world option).
     """
 
-    def __new__(cls, world, global_step: int = 3, **options):
+    def __new__(cls, world, *args, **options):
         if getattr(getattr(world, "scenario", None), "kind", None) == "drone":
             from ..planners.drone_control import DroneHungarianGreedy  # MuJoCo only when needed
-            return DroneHungarianGreedy(world, global_step=global_step, **options)
+            return DroneHungarianGreedy(world, *args, **options)
         return super().__new__(cls)
 
     def __init__(self, world, global_step: int = 3, **options):

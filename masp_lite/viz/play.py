@@ -42,14 +42,14 @@ def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_
         meshcat3d.play_to_html(method, scenario, str(out), seed=seed, **overrides)
         return out
     from ..envs import make
-    from ..eval import _factory, _method_params
+    from ..eval import _factory, _method_params, build_policy
     from .anim2d import animate, record, save
 
     factory = _factory(method)
     world = make(scenario, num_envs=1, seed=seed, **overrides)
     if "seed" in _method_params(factory)[0]:  # as evaluate does: the seed reaches the method too
         options.setdefault("seed", seed)
-    policy = factory(world, **options)
+    policy = build_policy(factory, method, world, options)
     return save(animate(record(world, policy, seed=seed)), out)
 
 
