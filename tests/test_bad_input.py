@@ -182,7 +182,7 @@ def test_bench_env_rejects_bad_options(capsys):
 def test_bench_env_smoke(tmp_path, capsys):
     """Output format only: tiny budgets, no timing assertions."""
     out = tmp_path / "env.json"
-    assert main(["bench", "env", "--seconds", "0.05", "--threads", "1", "--worlds", "1", "4",
+    assert main(["bench", "env", "--seconds", "0.1", "--rounds", "2", "--threads", "1", "--worlds", "1", "4",
                  "--json", str(out)]) == 0
     text = capsys.readouterr().out
     assert "resets included" in text and text.count("agent-steps/s") >= 2

@@ -9,14 +9,17 @@ same run*, so that the ratio compares like with like on whatever machine runs it
 What is counted: one agent-step is one agent advanced by one environment step
 (``steps × worlds × agents``). Episode resets **are included** in the timed loop (a world
 that reaches its horizon is reset, as in training), and so is drawing the random actions.
-Each measurement warms up for a few steps, then runs for ``--seconds`` of wall time.
+Each measurement warms up for a few steps, then runs for ``--seconds`` of wall time, split
+into ``--rounds`` that alternate between masp-lite and mpe2; each figure is the median over
+rounds and the ratio the median of the per-round ratios, so a load change mid-run hits both
+sides alike.
 
 The machine's load average is printed before and after: torch's intra-op threads degrade
 badly when the cores are shared (on a busy 2-core machine, ``--threads 2`` measured ~25×
 slower than ``--threads 1``, while single-threaded mpe2 lost ~2×), so a ratio is only
 meaningful on an otherwise idle machine.
 
-Options: ``--seconds`` per measurement, ``--threads`` torch threads (default 2),
+Options: ``--seconds`` per measurement, ``--rounds``, ``--threads`` torch threads (default 2),
 ``--worlds`` the batch sizes, ``--json PATH`` to also write the figures as JSON.
 """
 from __future__ import annotations
@@ -24,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import time
 
 import torch
@@ -37,6 +41,8 @@ RATIO_AT = 64  # the batch size at which masp-lite is compared with mpe2
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seconds", type=float, default=3.0, help="wall time per measurement (default 3)")
     parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    parser.add_argument("--rounds", type=int, default=3,
+                        help="split each measurement into this many alternating rounds (default 3)")
     parser.add_argument("--worlds", type=int, nargs="+", default=[1, 64, 256],
                         help="numbers of parallel worlds to measure (default 1 64 256)")
     parser.add_argument("--json", metavar="PATH", default=None, help="also write the results as JSON")
@@ -100,34 +106,42 @@ def _load() -> float | None:
 def run(args: argparse.Namespace) -> int:
     if not args.seconds > 0:
         raise ValueError(f"--seconds: expected a positive number, got {args.seconds}")
-    if args.threads < 1:
-        raise ValueError(f"--threads: expected a positive int, got {args.threads}")
+    if args.threads < 1 or args.rounds < 1:
+        raise ValueError(f"--threads, --rounds: expected positive ints, got {args.threads}, {args.rounds}")
     if any(b < 1 for b in args.worlds):
         raise ValueError(f"--worlds: expected positive ints, got {args.worlds}")
     torch.set_num_threads(args.threads)
     load_before = _load()
     print(f"bench env: {SCENARIO} (50 agents, 30 obstacles), random actions, resets included, "
-          f"{args.threads} thread(s), {args.seconds:g} s per measurement, "
+          f"{args.threads} thread(s), {args.seconds:g} s per measurement in {args.rounds} round(s), "
           f"{os.cpu_count()} CPU(s), load average {load_before}")
-    masp = {}
+    # rounds alternate between the two sides, so a load change hits both alike
+    share = args.seconds / args.rounds
+    masp_rounds = {b: [] for b in args.worlds}
+    ref_rounds = []
+    for r in range(args.rounds):
+        for b in args.worlds:
+            masp_rounds[b].append(measure_masp(b, share, seed=r))
+        ref_rounds.append(measure_mpe2(share, seed=r))
+    masp = {b: statistics.median(v) for b, v in masp_rounds.items()}
     for b in args.worlds:
-        masp[b] = measure_masp(b, args.seconds)
         print(f"  masp-lite  {b:>5} world(s)      {masp[b]:>14,.0f} agent-steps/s")
-    ref = measure_mpe2(args.seconds)
-    ratio = None
-    if ref is None:
+    ref = ratio = base = None
+    if ref_rounds[0] is None:
         print("  mpe2 not installed: no reference measurement")
     else:
+        ref = statistics.median(ref_rounds)
         print(f"  mpe2 simple_spread_v3 (1 episode) {ref:>14,.0f} agent-steps/s")
         base = RATIO_AT if RATIO_AT in masp else max(masp)
-        ratio = masp[base] / ref
-        print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x")
+        ratio = statistics.median(m / q for m, q in zip(masp_rounds[base], ref_rounds))
+        print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x (median over rounds)")
     load_after = _load()
     print(f"  load average after: {load_after}")
     if args.json:
-        result = {"load_average": {"before": load_before, "after": load_after}, "target": "env", "scenario": SCENARIO, "num_agents": 50, "resets": "included",
+        result = {"target": "env", "scenario": SCENARIO, "num_agents": 50, "resets": "included",
                   "actions": "random", "threads": args.threads, "seconds": args.seconds,
-                  "torch": torch.__version__,
+                  "rounds": args.rounds, "cpus": os.cpu_count(),
+                  "load_average": {"before": load_before, "after": load_after}, "torch": torch.__version__,
                   "masp_agent_steps_per_s": {str(b): v for b, v in masp.items()},
                   "mpe2_agent_steps_per_s": ref,
                   "ratio": None if ratio is None else {"worlds": base, "value": ratio}}
