@@ -159,3 +159,35 @@ def test_drone_scenarios_are_handed_to_the_drone_module(monkeypatch):
     monkeypatch.setattr(masp_lite.envs, "drone_pettingzoo", fake, raising=False)
     assert parallel_env("drone-5", render_mode="rgb_array", horizon=10) == "drone"
     assert calls == [("drone-5", "rgb_array", {"horizon": 10})]
+
+
+def test_rewards_and_positions_match_mpe2_simple_spread():
+    """Same start and actions as mpe2's simple_spread_v3 (agent size 0.1): same rewards."""
+    simple_spread = pytest.importorskip("mpe2.simple_spread_v3")
+    n, steps = 6, 40
+    rng = np.random.default_rng(7)
+    centres = np.array([[-0.5, -0.5], [0.5, 0.0], [-0.3, 0.6]])
+    pos = np.concatenate([centres - [0.1025, 0], centres + [0.1025, 0]])
+    vel = np.concatenate([np.tile([1.2, 0.0], (3, 1)), np.tile([-1.2, 0.1], (3, 1))])
+    lms = rng.uniform(-0.9, 0.9, (n, 2))
+    ref = simple_spread.parallel_env(N=n, max_cycles=steps)
+    ref.reset(seed=0)
+    for i, agent in enumerate(ref.unwrapped.world.agents):
+        agent.size = 0.1
+        agent.state.p_pos, agent.state.p_vel = pos[i].copy(), vel[i].copy()
+    for i, lm in enumerate(ref.unwrapped.world.landmarks):
+        lm.state.p_pos = lms[i].copy()
+    env = parallel_env("mpe-5", num_agents=n, num_obstacles=0, world_size=4.0, horizon=steps)
+    env.reset(options={"agent_pos": pos, "agent_vel": vel, "landmark_pos": lms})
+    penalties = 0
+    for _ in range(steps):
+        acts = {a: int(rng.integers(5)) for a in env.agents}
+        _, want, *_ = ref.step(acts)
+        _, got, _, _, infos = env.step(acts)
+        for a in acts:
+            assert got[a] == pytest.approx(want[a], abs=1e-4)
+        penalties += sum(info["collisions"] for info in infos.values())
+        mpe_pos = np.stack([x.state.p_pos for x in ref.unwrapped.world.agents])
+        np.testing.assert_allclose(env.agent_pos, mpe_pos, atol=1e-4)
+    assert penalties > 0, "the start state was meant to produce collision penalties"
+    assert env.agents == [] and ref.agents == []
