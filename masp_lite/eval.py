@@ -43,8 +43,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-__all__ = ["EpisodeLog", "success_rate", "steps", "collision_rate", "rollout", "evaluate",
-           "format_table", "parse_sets", "parse_value", "reached_target", "build_policy", "MAX_ENVS", "add_arguments", "run"]
+__all__ = ["EpisodeLog", "success_rate", "steps", "collision_rate", "reached_target", "rollout",
+           "evaluate", "build_policy", "format_table", "parse_sets", "parse_value", "MAX_ENVS",
+           "add_arguments", "run"]
 
 #: Most episodes run side by side in one batched world during evaluation.
 MAX_ENVS = 100
@@ -72,24 +73,16 @@ class EpisodeLog:
 
     def __post_init__(self):
         cov, rea, col, alive = self.covered, self.reached, self.collisions, self.alive
-        for name, x, nd in (("covered", cov, 3), ("reached", rea, 3), ("collisions", col, 2),
-                            ("alive", alive, 3)):
-            if not torch.is_tensor(x) or x.dim() != nd:
-                raise ValueError(f"EpisodeLog.{name}: expected a {nd}-d tensor, got "
-                                 f"{tuple(x.shape) if torch.is_tensor(x) else type(x).__name__}")
-        E, T1, _ = cov.shape
-        if rea.shape != cov.shape or col.shape != (E, T1 - 1) or alive.shape[:2] != (E, T1):
-            raise ValueError(f"EpisodeLog: expected covered/reached (E, T+1, L), collisions (E, T), "
-                             f"alive (E, T+1, N); got {tuple(cov.shape)}, {tuple(rea.shape)}, "
-                             f"{tuple(col.shape)}, {tuple(alive.shape)}")
-        if cov.dtype != torch.bool or rea.dtype != torch.bool or alive.dtype != torch.bool:
-            raise ValueError("EpisodeLog: expected bool tensors for covered, reached and alive")
+        shapes = [tuple(x.shape) if torch.is_tensor(x) else type(x).__name__ for x in (cov, rea, col, alive)]
+        ok = all(torch.is_tensor(x) for x in (cov, rea, col, alive)) and cov.dim() == 3 and \
+            rea.shape == cov.shape and col.shape == cov.shape[:1] + (cov.shape[1] - 1,) and \
+            alive.dim() == 3 and alive.shape[:2] == cov.shape[:2] and \
+            cov.dtype == rea.dtype == alive.dtype == torch.bool and not col.dtype.is_floating_point
+        if not ok:
+            raise ValueError("EpisodeLog: expected bool covered/reached (E, T+1, L), integer collisions "
+                             f"(E, T) and bool alive (E, T+1, N); got shapes {shapes}")
         if isinstance(self.horizon, bool) or not isinstance(self.horizon, int) or self.horizon < 1:
             raise ValueError(f"EpisodeLog.horizon: expected a positive int, got {self.horizon!r}")
-
-    @property
-    def num_episodes(self) -> int:
-        return self.covered.shape[0]
 
     @classmethod
     def cat(cls, logs: list[EpisodeLog]) -> EpisodeLog:
@@ -302,50 +295,66 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
 
 
 # ------------------------------------------------------------------------------- tables
-def _cell(stat: dict, latex: bool, backslash: bool = False) -> str:
+_METRICS = (("steps", "Steps", r"$\downarrow$", "↓"), ("sr", "SR", r"$\uparrow$", "↑"),
+            ("cr", "CR", r"$\downarrow$", "↓"))
+
+
+def _cell(stat: dict, latex: bool) -> str:
+    """"mean (std)" with 2 decimals; a missing mean is the paper's backslash (only Steps has one)."""
     if stat.get("mean") is None:
-        return r"$\backslash$" if latex else "\\" if backslash else "-"
+        return r"$\backslash$" if latex else "\\"
     if latex:
         return f"{stat['mean']:.2f}\\scriptsize{{({stat['std']:.2f})}}"
     return f"{stat['mean']:.2f} ({stat['std']:.2f})"
 
 
-def format_table(rows, fmt: str = "markdown") -> str:
-    """Records of :func:`evaluate` as a table: one row per record, "mean (std)" with 2 decimals.
-
-    Columns: Method, Scenario, Steps ↓, SR ↑, CR ↓, decision time (ms). Steps is a
-    backslash when no episode reached SR 1, as in the paper. ``fmt``: ``"markdown"``
-    (also readable as plain text), ``"text"`` (aligned columns) or ``"latex"`` (a
-    ``tabular``, stds in ``\\scriptsize`` and the backslash as ``$\\backslash$``, as the
-    paper typesets them).
-    """
-    if isinstance(rows, dict):
-        rows = [rows]
-    if fmt not in ("markdown", "text", "latex"):
-        raise ValueError(f"fmt: expected 'markdown', 'text' or 'latex', got {fmt!r}")
-    head = ["Method", "Scenario", "Steps ↓", "SR ↑", "CR ↓", "Decision (ms)"]
-    latex = fmt == "latex"
-    body = []
-    for r in rows:
-        try:
-            body.append([r["method"], r["scenario"], _cell(r["steps"], latex, True), _cell(r["sr"], latex),
-                         _cell(r["cr"], latex), _cell(r["decision_ms"], latex)])
-        except (KeyError, TypeError):
-            raise ValueError("format_table: expected evaluate() records with method, scenario, "
-                             "steps, sr, cr and decision_ms") from None
-    if latex:
-        head = ["Method", "Scenario", r"\textit{Steps} $\downarrow$", r"\textit{SR} $\uparrow$",
-                r"\textit{CR} $\downarrow$", "Decision (ms)"]
-        lines = [r"\begin{tabular}{llcccc}", r"\hline", " & ".join(head) + r" \\", r"\hline"]
-        lines += [" & ".join(c.replace("_", r"\_") if i < 2 else c for i, c in enumerate(row)) + r" \\"
-                  for row in body]
+def _render(head: list[str], body: list[list[str]], fmt: str) -> str:
+    if fmt == "latex":
+        esc = lambda c: c.replace("_", r"\_")  # noqa: E731
+        lines = [r"\begin{tabular}{" + "l" * 2 + "c" * (len(head) - 2) + "}", r"\hline",
+                 " & ".join(map(esc, head)) + r" \\", r"\hline"]
+        lines += [" & ".join(map(esc, row)) + r" \\" for row in body]
         return "\n".join(lines + [r"\hline", r"\end{tabular}"])
-    widths = [max(len(str(x)) for x in col) for col in zip(head, *body)]
+    widths = [max(len(c) for c in col) for col in zip(head, *body)]
     if fmt == "text":
-        return "\n".join("  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip()
-                         for row in [head, *body])
-    line = lambda row: "| " + " | ".join(str(c).ljust(w) for c, w in zip(row, widths)) + " |"  # noqa: E731
+        return "\n".join("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in [head, *body])
+    line = lambda row: "| " + " | ".join(c.ljust(w) for c, w in zip(row, widths)) + " |"  # noqa: E731
     return "\n".join([line(head), "|" + "|".join("-" * (w + 2) for w in widths) + "|", *map(line, body)])
+
+
+def format_table(rows, fmt: str = "markdown", layout: str = "rows") -> str:
+    """Records of :func:`evaluate` as a table of "mean (std)" cells with 2 decimals.
+
+    ``layout="rows"``: one row per record — Method, Scenario, Steps ↓, SR ↑, CR ↓ and the
+    decision time (ms per step). ``layout="paper"``: the paper's tables — for each scenario
+    three rows (Steps, SR, CR) and one column per method. Steps is a backslash when no
+    episode reached SR 1, as in the paper. ``fmt``: ``"markdown"``, ``"text"`` (aligned
+    columns) or ``"latex"`` (a ``tabular``; stds in ``\\scriptsize``, the backslash as
+    ``$\\backslash$``, arrows as ``$\\downarrow$``, as the paper typesets them).
+    """
+    rows = [rows] if isinstance(rows, dict) else list(rows)
+    if fmt not in ("markdown", "text", "latex") or layout not in ("rows", "paper"):
+        raise ValueError(f"format_table: expected fmt in ('markdown', 'text', 'latex') and layout in "
+                         f"('rows', 'paper'), got {fmt!r}, {layout!r}")
+    latex = fmt == "latex"
+    name = lambda m: (rf"\textit{{{m[1]}}} {m[2]}" if latex else f"{m[1]} {m[3]}")  # noqa: E731
+    try:
+        if layout == "rows":
+            head = ["Method", "Scenario", *map(name, _METRICS), "Decision (ms)"]
+            body = [[r["method"], r["scenario"], *(_cell(r[m[0]], latex) for m in _METRICS),
+                     _cell(r["decision_ms"], latex)] for r in rows]
+        else:
+            methods = list(dict.fromkeys(r["method"] for r in rows))
+            scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
+            cell = {(r["scenario"], r["method"]): r for r in rows}
+            head = ["Scenario", "Metric", *methods]
+            body = [[sc if i == 0 else "", name(m),
+                     *(_cell(cell[sc, meth][m[0]], latex) if (sc, meth) in cell else "" for meth in methods)]
+                    for sc in scenarios for i, m in enumerate(_METRICS)]
+    except (KeyError, TypeError):
+        raise ValueError("format_table: expected evaluate() records with method, scenario, "
+                         "steps, sr, cr and decision_ms") from None
+    return _render(head, body, fmt)
 
 
 # ---------------------------------------------------------------------------------- CLI

@@ -93,6 +93,20 @@ def test_table_format_two_decimals():
         format_table([rec], fmt="html")
 
 
+def test_paper_layout_has_metric_rows_and_method_columns():
+    def rec(method, scenario, steps):
+        return {"method": method, "scenario": scenario, "steps": {"mean": steps, "std": 1.0 if steps else None},
+                "sr": {"mean": 0.5, "std": 0.1}, "cr": {"mean": 0.25, "std": 0.0},
+                "decision_ms": {"mean": 1.0, "std": 0.0}}
+    rows = [rec("a", "mpe-5", 9.0), rec("b", "mpe-5", None), rec("a", "mpe-20", 30.0)]
+    lines = format_table(rows, fmt="text", layout="paper").splitlines()
+    assert lines[0].split() == ["Scenario", "Metric", "a", "b"] and len(lines) == 1 + 3 * 2
+    assert lines[1].split() == ["mpe-5", "Steps", "↓", "9.00", "(1.00)", "\\"]
+    assert lines[4].split()[:2] == ["mpe-20", "Steps"]
+    latex = format_table(rows, fmt="latex", layout="paper")
+    assert r"\textit{SR} $\uparrow$ & 0.50\scriptsize{(0.10)} & 0.50\scriptsize{(0.10)} \\" in latex
+
+
 def test_parse_value():
     assert [parse_value(x) for x in ("3", "0.5", "True", "none", "abc")] == [3, 0.5, True, None, "abc"]
 
