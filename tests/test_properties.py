@@ -118,8 +118,6 @@ def test_pettingzoo_observations_fit_their_space(name, n, k, seed):
         assert all(np.isfinite(r) and r <= 0 for r in rew.values())
 
 
-@pytest.mark.xfail(reason="change_step=0 passes validation, but the world only drops agents when a "
-                          "step brings t to change_step (t >= 1): the team never shrinks")
 def test_change_step_zero_is_refused_or_drops_at_the_start():
     try:
         w = make("mpe-5", team_after=2, change_step=0, seed=0)

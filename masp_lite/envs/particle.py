@@ -93,7 +93,10 @@ class ParticleWorld:
         self.num_obstacles = sc.num_obstacles
         self.horizon = sc.horizon
         self._rng = torch.Generator()  # spawns are drawn on the CPU: same numbers on every device
-        self._rng.manual_seed(int(seed) if seed is not None else int(torch.seed() % (2**63)))
+        if seed is None:
+            self._rng.seed()  # fresh entropy, leaving torch's global generator alone
+        else:
+            self._rng.manual_seed(int(seed))
         self._dirs = torch.tensor(ACTION_DIRECTIONS, dtype=dtype, device=self.device) * PHYSICS["sensitivity"]
         eye = torch.eye(self.num_agents, dtype=torch.bool, device=self.device)
         self._not_self = ~eye
@@ -273,6 +276,7 @@ class ParticleWorld:
         if sc.varying:
             changed = (self.t == sc.change_step).unsqueeze(-1)
             self.alive = torch.where(changed, self.alive & self._keep, self.alive)
+            self.agent_vel = self.agent_vel * self.alive.unsqueeze(-1)  # leavers stop at once
         self._geometry()
         self.reached = self.reached | self.covered
         return self.observe(), self.info()

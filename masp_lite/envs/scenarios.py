@@ -161,7 +161,7 @@ def _validate(sc: Scenario) -> None:
     if sc.team_after is not None:
         need(1 <= sc.team_after <= sc.num_agents,
              f"1 <= team_after <= num_agents ({sc.num_agents}), got {sc.team_after}")
-        need(0 <= sc.change_step < sc.horizon, f"0 <= change_step < horizon, got {sc.change_step}")
+        need(1 <= sc.change_step < sc.horizon, f"1 <= change_step < horizon, got {sc.change_step}")
     # Loose packing check so rejection sampling of spawns terminates quickly.
     body_area = math.pi * (sc.num_agents * (sc.agent_radius + 0.05) ** 2
                            + sc.num_obstacles * (sc.obstacle_radius + 0.05) ** 2
