@@ -14,7 +14,7 @@ def test_velocity_to_action_picks_the_closest_next_velocity():
     assert velocity_to_action(vel, desired).tolist() == [0, 1, 2, 3, 4]
     # moving fast in +x with a zero target: the -x action brakes hardest
     assert velocity_to_action(torch.tensor([[2.0, 0.0]]), torch.zeros(1, 2)).tolist() == [1]
-    with pytest.raises(ValueError, match="equal shapes"):
+    with pytest.raises(ValueError, match="expected"):
         velocity_to_action(torch.zeros(3, 2), torch.zeros(3, 3))
 
 

@@ -8,12 +8,13 @@ as MASP's Goal Matcher), followed by a straight line to the goal with no collisi
 avoidance at all. The planners ((H)ORCA, (H)RRT*, (H)Voronoi) replace only the straight
 line, so the difference to ``h-greedy`` is what their path planning buys.
 
-The low-level controller is hand-written because it is MPE's own dynamics run backwards:
-from velocity ``v`` a discrete action ``a`` leads to ``v' = (1 - damping) v + e(a) s dt / m``
-(``e(a)`` the action's unit direction, ``s`` the sensitivity; contact forces ignored), so
-:func:`velocity_to_action` predicts ``v'`` for the five actions and keeps the one closest
-to the desired velocity. The desired velocity points at the goal with a speed that lets the
-agent brake to a stop on it (:func:`braking_speed`).
+The low-level controller is MPE's own dynamics run backwards, hand-written because no
+library knows MPE's discrete actions: from velocity ``v`` an action ``a`` leads to
+``v' = (1 - damping) v + e(a) s dt / m`` (``e(a)`` the action's unit direction, ``s`` the
+sensitivity; contact forces ignored), so ``velocity_to_action`` (shared with the planners,
+:mod:`masp_lite.planners.controllers`, and re-exported here) predicts ``v'`` for the five
+actions and keeps the one closest to the desired velocity. The desired velocity points at
+the goal with a speed that lets the agent brake to a stop on it (:func:`braking_speed`).
 """
 from __future__ import annotations
 
@@ -23,29 +24,12 @@ import torch
 
 from ..algos.assignment import hungarian
 from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
+from ..planners.controllers import velocity_to_action  # the controller every planner shares
 
 __all__ = ["RandomPolicy", "HungarianGreedy", "velocity_to_action", "braking_speed", "MAX_SPEED"]
 
 #: Terminal speed under a constant action: ``v = (1 - damping) v + s dt / m`` -> 2 m/s in MPE.
 MAX_SPEED = PHYSICS["sensitivity"] * PHYSICS["dt"] / PHYSICS["mass"] / PHYSICS["damping"]
-
-
-def velocity_to_action(vel: torch.Tensor, desired_vel: torch.Tensor) -> torch.Tensor:
-    """Discrete action whose next velocity is closest to ``desired_vel``.
-
-    ``vel`` and ``desired_vel``: (..., 2). Returns a long tensor (...) of action ids
-    (0 no-op, 1 -x, 2 +x, 3 -y, 4 +y). The prediction is the velocity update of an MPE
-    step without contact forces: ``v' = (1 - damping) v + e(a) s dt / m``.
-    Ties go to the lowest id, so an agent already at the desired velocity's nearest
-    reachable velocity with no-op keeps still.
-    """
-    if vel.shape != desired_vel.shape or vel.shape[-1] != 2:
-        raise ValueError(f"vel {tuple(vel.shape)} and desired_vel {tuple(desired_vel.shape)}: "
-                         "expected equal shapes (..., 2)")
-    p = PHYSICS
-    dirs = torch.tensor(ACTION_DIRECTIONS, dtype=vel.dtype, device=vel.device)
-    nxt = vel.unsqueeze(-2) * (1 - p["damping"]) + dirs * (p["sensitivity"] * p["dt"] / p["mass"])
-    return (nxt - desired_vel.unsqueeze(-2)).norm(dim=-1).argmin(dim=-1)
 
 
 def braking_speed(distance: torch.Tensor) -> torch.Tensor:
