@@ -209,3 +209,14 @@ def test_pettingzoo_reset_options_and_bad_actions():
         env.step({"drone_0": np.zeros(4)})
     with pytest.raises(ValueError, match="render_mode"):
         parallel_env("drone-5", render_mode="human")
+
+
+def test_bench_drones_measures_both_sides(capsys):
+    import argparse
+
+    from masp_lite.bench import drones as bench
+    r = bench.measure(2, seconds=0.1, rounds=1)
+    assert r["env_steps_per_s"] > 0 and r["raw_env_steps_per_s"] > 0
+    assert r["overhead"] == pytest.approx(r["raw_env_steps_per_s"] / r["env_steps_per_s"])
+    with pytest.raises(ValueError, match="seconds"):
+        bench.run(argparse.Namespace(seconds=0, rounds=1, worlds=[1], threads=1, json=None))

@@ -107,6 +107,10 @@ class DroneWorld:
         self.collisions = np.zeros(B, np.int64)
         self.agent_collisions = np.zeros((B, N), np.int64)
         self._rec = {"sensordata": np.zeros((B, SUBSTEPS, self.model.nsensordata))}
+        self._q3, self._v3 = self._qpos.reshape(B, N, 7), self._qvel.reshape(B, N, 6)  # views of the state rows
+        assert np.shares_memory(self._q3, self._qpos) and np.shares_memory(self._v3, self._qvel)
+        self._no_obstacles = torch.zeros(B, 0, 3, dtype=dtype, device=self.device)
+        self._everyone = True  # every drone of every episode is still flying
         self.reset()
 
     # ------------------------------------------------------------------ reset
@@ -142,11 +146,17 @@ class DroneWorld:
         self._qpos[ids] = q.reshape(n, -1)
         self._qvel[ids] = v.reshape(n, -1)
         self.batch.forward(ids)
+        self.throttle = self.throttle.copy()
         self.throttle[ids] = np.sqrt((HOVER_COMMAND + 1) / 2)
         self._ctrl[ids] = np.square(self.throttle[ids]).reshape(n, -1) * MAX_THRUST
+        self.landmark_pos = self.landmark_pos.copy()
         self.landmark_pos[ids] = lms
+        self.alive = self.alive.copy()
         self.alive[ids] = True
+        self._everyone = bool(self.alive.all())
         self._keep[ids] = self._team_mask(n, options.get("keep"))
+        self.t, self.reached = self.t.copy(), self.reached.copy()
+        self.collisions, self.agent_collisions = self.collisions.copy(), self.agent_collisions.copy()
         self.t[ids] = 0
         self.reached[ids] = False
         self.collisions[ids] = 0
@@ -209,35 +219,39 @@ class DroneWorld:
     def step(self, actions) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
         """Advance every episode by one control step (``SUBSTEPS`` MuJoCo steps)."""
         cmd = self._check_actions(actions)
-        if (self.t >= self.horizon).any():
+        if self.t.max() >= self.horizon:
             raise ValueError(f"episode over (horizon {self.horizon} reached); expected reset() before step()")
-        B, N, alive = self.num_envs, self.num_agents, self.alive
+        B, N, alive, everyone = self.num_envs, self.num_agents, self.alive, self._everyone
         # rotor model: target throttle sqrt((c+1)/2), first-order lag, thrust = throttle² f_max
-        target = np.sqrt((cmd + 1) * 0.5)
-        self.throttle += HUMMINGBIRD["rotor_lag"] * (target - self.throttle)
-        self.throttle *= alive[..., None]
-        self._ctrl[:] = (np.square(self.throttle) * MAX_THRUST).reshape(B, -1)
-        gone = ~alive
-        if gone.any():  # park whoever left: zero velocity, own spot far above the map
-            q, v = self._qpos.reshape(B, N, 7), self._qvel.reshape(B, N, 6)
-            q[gone] = np.broadcast_to(self._park, (B, N, 7))[gone]
-            v[gone] = 0.0
-        rec = self.batch.rollout(SUBSTEPS, record=("sensordata",), out=self._rec)
-        sens = rec["sensordata"].max(axis=1)                                          # (B, 2N)
-        touch_any, touch_floor = sens[:, 0::2], sens[:, 1::2]
-        pos = self._qpos.reshape(B, N, 7)[..., :3]
-        half = self.scenario.world_size / 2
-        out = (np.abs(pos[..., :2]) > half).any(-1) | (pos[..., 2] > CEILING)
-        drone_contacts = (touch_any - touch_floor) * alive
-        self.agent_collisions = ((drone_contacts + touch_floor + out) * alive).astype(np.int64)
-        self.collisions = (np.rint(drone_contacts.sum(1) / 2) + ((touch_floor + out) * alive).sum(1)).astype(np.int64)
-        self.t += 1
-        leaving = alive & (self.agent_collisions > 0)
-        if self.scenario.varying:
-            leaving |= alive & ~self._keep & (self.t == self.scenario.change_step)[:, None]
-        if leaving.any():
+        throttle = self.throttle + HUMMINGBIRD["rotor_lag"] * (np.sqrt((cmd + 1) * 0.5) - self.throttle)
+        if not everyone:
+            throttle *= alive[..., None]
+            gone = ~alive  # park whoever left: zero velocity, own spot far above the map
+            self._q3[gone] = np.broadcast_to(self._park, (B, N, 7))[gone]
+            self._v3[gone] = 0.0
+        self.throttle = throttle
+        self._ctrl[:] = (throttle * throttle * MAX_THRUST).reshape(B, -1)
+        sens = self.batch.rollout(SUBSTEPS, record=("sensordata",), out=self._rec)["sensordata"].max(axis=1)
+        pos = self._q3[..., :3]
+        out = (np.abs(pos[..., :2]) > self.scenario.world_size / 2).any(-1) | (pos[..., 2] > CEILING)
+        self.t = self.t + 1
+        leaving = None
+        if sens.any() or out.any():  # contacts (B, 2N): [any, floor] per drone, max over substeps
+            touch_any, touch_floor = sens[:, 0::2], sens[:, 1::2]
+            drone_contacts = (touch_any - touch_floor) * alive
+            self.agent_collisions = ((drone_contacts + touch_floor + out) * alive).astype(np.int64)
+            self.collisions = (np.rint(drone_contacts.sum(1) / 2)
+                               + ((touch_floor + out) * alive).sum(1)).astype(np.int64)
+            leaving = alive & (self.agent_collisions > 0)
+        elif self.collisions.any():
+            self.collisions, self.agent_collisions = np.zeros(B, np.int64), np.zeros((B, N), np.int64)
+        if self.scenario.varying and (self.t == self.scenario.change_step).any():
+            drop = alive & ~self._keep & (self.t == self.scenario.change_step)[:, None]
+            leaving = drop if leaving is None else leaving | drop
+        if leaving is not None and leaving.any():
             self._frozen[leaving] = self._state()[leaving]
             self.alive = alive & ~leaving
+            self._everyone = False
         self._update_coverage()
         return self.observe(), self.info()
 
@@ -269,23 +283,31 @@ class DroneWorld:
 
     def _update_coverage(self):
         """Covered/reached landmarks, then the tensors that ``observe`` and ``info`` hand out."""
-        self.state = s = np.where(self.alive[..., None], self._state(), self._frozen)
+        st = np.concatenate([self._q3, self._v3, self.throttle, self.landmark_pos], -1)
+        if not self._everyone:
+            st[..., :13] = np.where(self.alive[..., None], st[..., :13], self._frozen)
+        self.state = s = st[..., :13]
         diff = s[:, :, None, :3] - self.landmark_pos[:, None]                        # (B, N, L, 3)
         near = np.einsum("bnlk,bnlk->bnl", diff, diff) <= self.reach_distance ** 2
         self.covered = (near & self.alive[..., None]).any(axis=1)
         self.reached = self.reached | self.covered
-        # one conversion per kind: the observation's tensors are views of these
-        st = torch.from_numpy(np.concatenate([s, self.throttle, self.landmark_pos], -1)).to(self.device, self.dtype)
-        flags = torch.from_numpy(np.stack([self.alive, self.covered, self.reached])).to(self.device)
-        counts = torch.from_numpy(np.concatenate([self.t[:, None], self.collisions[:, None],
-                                                  self.agent_collisions], 1)).to(self.device)
-        t, done = counts[:, 0], counts[:, 0] >= self.horizon
-        self._obs = {"agent_pos": st[..., :3], "agent_vel": st[..., 7:10], "agent_quat": st[..., 3:7],
-                     "agent_angvel": st[..., 10:13], "throttle": st[..., 13:17], "landmark_pos": st[..., 17:],
-                     "obstacle_pos": st.new_zeros(self.num_envs, 0, 3),
-                     "alive": flags[0], "covered": flags[1], "reached": flags[2], "t": t}
-        self._info = {"covered": flags[1], "reached": flags[2], "collisions": counts[:, 1],
-                      "agent_collisions": counts[:, 2:], "alive": flags[0], "done": done, "t": t}
+        # numpy slices wrapped by torch.from_numpy: cheaper than slicing tensors, and fresh every step
+        if self.dtype == torch.float32:
+            st = st.astype(np.float32)
+        flags = np.stack([self.alive, self.covered, self.reached])
+        T = self._tensor
+        alive, covered, reached, t = T(flags[0]), T(flags[1]), T(flags[2]), T(self.t)
+        self._obs = {"agent_pos": T(st[..., :3]), "agent_vel": T(st[..., 7:10]), "agent_quat": T(st[..., 3:7]),
+                     "agent_angvel": T(st[..., 10:13]), "throttle": T(st[..., 13:17]),
+                     "landmark_pos": T(st[..., 17:]), "obstacle_pos": self._no_obstacles, "alive": alive,
+                     "covered": covered, "reached": reached, "t": t}
+        self._info = {"covered": covered, "reached": reached, "collisions": T(self.collisions),
+                      "agent_collisions": T(self.agent_collisions), "alive": alive,
+                      "done": T(self.t >= self.horizon), "t": t}
+
+    def _tensor(self, a: np.ndarray) -> torch.Tensor:
+        t = torch.from_numpy(a)
+        return t if self.device.type == "cpu" else t.to(self.device)
 
     # ------------------------------------------------------------- observing
     @property
