@@ -207,11 +207,21 @@ def _method_params(factory) -> tuple[set[str], bool]:
 
 
 def build_policy(factory, method: str, world, options: dict):
-    """``factory(world, **options)``, with a wrong option reported as one ValueError."""
+    """``factory(world, **options)``, with a wrong option reported as one ValueError.
+
+    A method that takes ``**options`` checks their names itself; when it rejects one, the
+    message also lists the scenario overrides, so a misspelt ``--set`` key shows both lists.
+    """
+    from .envs import OVERRIDES
     try:
         return factory(world, **options)
     except TypeError as e:
-        raise ValueError(f"method {method!r}: bad option(s) {sorted(options)} ({e})") from None
+        raise ValueError(f"method {method!r}: bad option(s) {sorted(options)} ({e}); scenario "
+                         f"overrides are {sorted(OVERRIDES)}") from None
+    except ValueError as e:
+        if any(k in str(e) for k in options):
+            raise ValueError(f"{e}; scenario overrides are {sorted(OVERRIDES)}") from None
+        raise
 
 
 def _stats(x: np.ndarray) -> dict:
@@ -238,7 +248,7 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     milliseconds per step of one world. ``steps`` is ``{"mean": None, "std": None}`` when
     no episode reaches SR 1 (the paper's backslash).
     """
-    from .envs import OVERRIDES, get_scenario, make
+    from .envs import OVERRIDES, make
     overrides = dict(overrides or {})
     options = dict(method_options or {})
     factory = _factory(method)
@@ -260,11 +270,6 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
         raise ValueError(f"episodes: expected a positive int, got {episodes!r}")
     B = min(episodes, num_envs or MAX_ENVS)
     bar = None
-    if progress:
-        from tqdm import tqdm
-        horizon = get_scenario(scenario, **overrides).horizon
-        bar = tqdm(total=len(seeds) * math.ceil(episodes / B) * horizon, unit="step",
-                   desc=f"{method} on {scenario}", leave=False)
     logs, timings = [], []
     try:
         for s in seeds:
@@ -273,6 +278,10 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
             if "seed" in named:
                 opts.setdefault("seed", s)
             policy = build_policy(factory, method, world, opts)
+            if progress and bar is None:  # once the first policy is built: bad options fail first
+                from tqdm import tqdm
+                bar = tqdm(total=len(seeds) * math.ceil(episodes / B) * world.horizon, unit="step",
+                           desc=f"{method} on {getattr(world.scenario, 'name', scenario)}", leave=False)
             log, dt = _rollout(world, policy, episodes, s, progress=bar)
             logs.append(log)
             timings.append(dt)

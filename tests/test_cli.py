@@ -39,6 +39,11 @@ def test_bad_input_is_one_clear_error(capsys):
     assert main(["evaluate", "--method", "random", "--scenario", "mpe-5", "--set", "speed=3"]) == 2
     err = capsys.readouterr().err
     assert "speed" in err and "num_agents" in err and "seed" in err  # both lists named
+    # h-greedy takes **options (drone worlds hand them on) and names its own; both lists show
+    assert main(["evaluate", "--method", "h-greedy", "--scenario", "mpe-5", "--set", "speed=3",
+                 "--episodes", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "speed" in err and "global_step" in err and "num_agents" in err
     assert main(["evaluate", "--method", "random", "--scenario", "mpe-5", "--set", "horizon"]) == 2
     assert "KEY=VALUE" in capsys.readouterr().err
     assert main(["evaluate", "--method", "random", "--scenario", "mpe-5", "--set", "horizon=-1",
