@@ -1,0 +1,251 @@
+"""MAPPO pieces shared by MASP's two levels: config, storage, GAE, PPO losses, value normalisation.
+
+MAPPO (Yu et al. 2022) is PPO with parameters shared by the agents and a centralized
+critic. MASP trains its Goal Matcher (one transition per global step) and its executor
+(one per environment step) with it, together (paper, section "Overview"). This module
+holds what both levels use, each piece a small function:
+
+* :func:`gae` — generalized advantage estimation, backwards over time;
+* :func:`clipped_surrogate` — PPO's clipped policy loss;
+* :func:`value_loss` — clipped Huber value loss on normalised targets;
+* :class:`ValueNorm` — running mean/std of the returns (MAPPO's value normalisation);
+* :class:`RolloutStorage` — named per-step tensors stacked into (T, B, ...) and cut into
+  minibatches of (step, world) rows (a row keeps all agents of a world together, since
+  the graph networks need the whole team);
+* :func:`ppo_update` — epochs x minibatches of the combined loss, with gradient clipping.
+
+Defaults follow MAGE-X's MAPPO settings (lr 7e-4, clip 0.2, entropy 0.01, gamma 0.99,
+lambda 0.95, Huber delta 10, max grad norm 10, value normalisation). Why hand-written:
+the MARL libraries' PPO (e.g. ``on-policy``) assume flat per-agent observations; ours are
+graphs whose rows must keep a world's agents together.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+__all__ = ["MAPPOConfig", "gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage",
+           "ppo_update"]
+
+
+@dataclass
+class MAPPOConfig:
+    """Training settings for MASP (both levels). ``--set key=value`` on the CLI sets any field."""
+
+    num_envs: int = 64
+    """Worlds simulated side by side; one rollout is one episode of each."""
+    updates: int = 200
+    """PPO updates (rollouts) in the whole run."""
+    lr: float = 7e-4
+    """Adam learning rate, all four networks."""
+    ppo_epochs: int = 4
+    """Passes over each rollout."""
+    num_minibatches: int = 2
+    """Minibatches per pass (rows are (step, world) pairs)."""
+    clip: float = 0.2
+    """PPO ratio clip (policy) and value clip."""
+    entropy_coef: float = 0.01
+    """Entropy bonus weight."""
+    value_coef: float = 1.0
+    """Value loss weight."""
+    huber_delta: float = 10.0
+    """Huber loss threshold for the value loss."""
+    max_grad_norm: float = 10.0
+    """Gradient norm clip per network group."""
+    gamma: float = 0.99
+    """Executor discount per environment step."""
+    gae_lambda: float = 0.95
+    """GAE lambda (both levels)."""
+    gm_gamma: float = 0.5
+    """Goal Matcher discount per global step (its reward, eq. 1, is nearly immediate)."""
+    bonus_coef: float = 1.0
+    """alpha in R_CAE: weight of the complete bonus R_b."""
+    distance_coef: float = 1.0
+    """beta in R_CAE: weight of the distance penalty R_d."""
+    collision_coef: float = 1.0
+    """gamma in R_CAE: weight of the collision penalty R_c."""
+    width: int = 32
+    """Feature width L of every network."""
+    group_size: int = 3
+    """N_g, agents per group in the Group Information Fusion."""
+    gcn_layers: int = 1
+    """GCN layers per subgraph."""
+    obstacles_seen: int = 2
+    """Nearest obstacles the executor sees."""
+    global_step: int = 3
+    """Environment steps per Goal Matcher decision."""
+    eval_every: int = 10
+    """Updates between evaluations (0: only at the end)."""
+    eval_episodes: int = 32
+    """Episodes per evaluation (deterministic policies, fixed evaluation seed)."""
+    checkpoint_every: int = 5
+    """Updates between checkpoints of the training state."""
+
+    def __post_init__(self):
+        ints = ("num_envs", "updates", "ppo_epochs", "num_minibatches", "width", "group_size", "gcn_layers",
+                "obstacles_seen", "global_step", "eval_episodes", "checkpoint_every")
+        for name in ints:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (2 if name == "group_size" else 1):
+                raise ValueError(f"{name}: expected a positive int, got {v!r}")
+        if isinstance(self.eval_every, bool) or not isinstance(self.eval_every, int) or self.eval_every < 0:
+            raise ValueError(f"eval_every: expected an int >= 0, got {self.eval_every!r}")
+        for name in ("gamma", "gae_lambda", "gm_gamma"):
+            if not 0.0 <= float(getattr(self, name)) <= 1.0:
+                raise ValueError(f"{name}: expected a number in [0, 1], got {getattr(self, name)!r}")
+        for name in ("lr", "clip", "huber_delta", "max_grad_norm"):
+            if not float(getattr(self, name)) > 0:
+                raise ValueError(f"{name}: expected a positive number, got {getattr(self, name)!r}")
+
+
+def gae(rewards: torch.Tensor, values: torch.Tensor, next_value: torch.Tensor, gamma: float, lam: float,
+        not_done: torch.Tensor | None = None):
+    """Generalized advantage estimation over time axis 0: returns ``(advantages, returns)``.
+
+    ``rewards`` and ``values`` are (T, ...); ``next_value`` (...) is the value after the last
+    step (0 when the episode ends there); ``not_done`` (T, ...) is 0 where step ``t`` ended an
+    episode. ``delta_t = r_t + gamma V_{t+1} - V_t``; ``A_t = delta_t + gamma lambda A_{t+1}``;
+    returns are ``A + V``. Example (one step, ``gamma = 0.5``): r = 1, V = 0, next 2 -> A = 2.
+    """
+    T = rewards.shape[0]
+    adv = torch.zeros_like(rewards)
+    last = torch.zeros_like(next_value)
+    nd = torch.ones_like(rewards) if not_done is None else not_done.to(rewards.dtype)
+    for t in reversed(range(T)):  # the recursion runs backwards in time
+        nxt = next_value if t == T - 1 else values[t + 1]
+        delta = rewards[t] + gamma * nxt * nd[t] - values[t]
+        last = delta + gamma * lam * nd[t] * last
+        adv[t] = last
+    return adv, adv + values
+
+
+def clipped_surrogate(logp: torch.Tensor, old_logp: torch.Tensor, adv: torch.Tensor, clip: float,
+                      mask: torch.Tensor | None = None) -> torch.Tensor:
+    """PPO's loss ``-mean(min(rho A, clip(rho, 1-eps, 1+eps) A))`` with ``rho = exp(logp - old)``."""
+    ratio = torch.exp(logp - old_logp)
+    surr = torch.min(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv)
+    return -_mean(surr, mask)
+
+
+def value_loss(values, old_values, targets, clip: float, delta: float, mask=None) -> torch.Tensor:
+    """Clipped Huber value loss (MAPPO): max of the unclipped and clipped errors' Huber losses."""
+    clipped = old_values + (values - old_values).clamp(-clip, clip)
+    huber = nn.functional.huber_loss
+    lo = huber(values, targets, reduction="none", delta=delta)
+    lc = huber(clipped, targets, reduction="none", delta=delta)
+    return _mean(torch.max(lo, lc), mask)
+
+
+def _mean(x, mask):
+    if mask is None:
+        return x.mean()
+    m = mask.to(x.dtype)
+    return (x * m).sum() / m.sum().clamp(min=1)
+
+
+class ValueNorm(nn.Module):
+    """Running mean and std of value targets (MAPPO's ``ValueNorm``, debiased EMA).
+
+    ``update(x)`` folds a batch in with weight ``1 - beta``; ``normalize(x)`` and
+    ``denormalize(x)`` map between returns and the critic's output scale.
+    """
+
+    def __init__(self, beta: float = 0.999, eps: float = 1e-5):
+        super().__init__()
+        self.beta, self.eps = beta, eps
+        self.register_buffer("mean", torch.zeros((), dtype=torch.float64))
+        self.register_buffer("mean_sq", torch.zeros((), dtype=torch.float64))
+        self.register_buffer("debias", torch.zeros((), dtype=torch.float64))
+
+    def _stats(self):
+        d = self.debias.clamp(min=self.eps)
+        mean, sq = self.mean / d, self.mean_sq / d
+        return mean, (sq - mean**2).clamp(min=1e-2)
+
+    @torch.no_grad()
+    def update(self, x: torch.Tensor, mask: torch.Tensor | None = None) -> None:
+        x = x.double() if mask is None else x.double()[mask]
+        if x.numel() == 0:
+            return
+        self.mean.mul_(self.beta).add_((1 - self.beta) * x.mean())
+        self.mean_sq.mul_(self.beta).add_((1 - self.beta) * (x**2).mean())
+        self.debias.mul_(self.beta).add_(1 - self.beta)
+
+    def normalize(self, x: torch.Tensor) -> torch.Tensor:
+        mean, var = self._stats()
+        return ((x.double() - mean) / var.sqrt()).to(x.dtype)
+
+    def denormalize(self, x: torch.Tensor) -> torch.Tensor:
+        mean, var = self._stats()
+        return (x.double() * var.sqrt() + mean).to(x.dtype)
+
+
+class RolloutStorage:
+    """Per-step named tensors of shape (B, ...), stacked to (T, B, ...) and cut into minibatches.
+
+    >>> s = RolloutStorage(); s.add(x=torch.zeros(4, 3)); s.add(x=torch.ones(4, 3))
+    >>> s.stacked()["x"].shape
+    torch.Size([2, 4, 3])
+    """
+
+    def __init__(self):
+        self.steps: list[dict[str, torch.Tensor]] = []
+
+    def add(self, **tensors: torch.Tensor) -> None:
+        self.steps.append({k: v.detach() for k, v in tensors.items()})
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def stacked(self) -> dict[str, torch.Tensor]:
+        return {k: torch.stack([s[k] for s in self.steps]) for k in self.steps[0]}
+
+    @staticmethod
+    def minibatches(data: dict[str, torch.Tensor], num_minibatches: int, generator: torch.Generator):
+        """Flatten (T, B, ...) to rows and yield ``num_minibatches`` random disjoint row sets."""
+        flat = {k: v.reshape(-1, *v.shape[2:]) for k, v in data.items()}
+        rows = next(iter(flat.values())).shape[0]
+        order = torch.randperm(rows, generator=generator)
+        for idx in order.chunk(min(num_minibatches, rows)):
+            yield {k: v[idx] for k, v in flat.items()}
+
+
+def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: MAPPOConfig,
+               value_norm: ValueNorm, generator: torch.Generator) -> dict[str, float]:
+    """Run PPO on one level's rollout; returns mean ``policy_loss``, ``value_loss``, ``entropy``.
+
+    ``data`` (T, B, ...) must hold ``actions``, ``logp``, ``values`` (normalised critic
+    outputs at collection), ``returns`` (raw), ``advantages`` and ``mask`` (alive agents).
+    ``evaluate(minibatch) -> (logits, values)`` recomputes the networks on a minibatch.
+    Advantages are standardised over the alive agents of the whole rollout.
+    """
+    mask_all = data["mask"]
+    adv = data["advantages"]
+    m = adv[mask_all]
+    data = dict(data, advantages=(adv - m.mean()) / (m.std() + 1e-8) if m.numel() > 1 else adv,
+                targets=value_norm.normalize(data["returns"]))
+    stats = {"policy_loss": 0.0, "value_loss": 0.0, "entropy": 0.0}
+    n = 0
+    params = list(actor.parameters()) + list(critic.parameters())
+    for _ in range(cfg.ppo_epochs):
+        for mb in RolloutStorage.minibatches(data, cfg.num_minibatches, generator):
+            logits, values = evaluate(mb)
+            logp_all = torch.log_softmax(logits, dim=-1)
+            logp = torch.gather(logp_all, -1, mb["actions"].unsqueeze(-1)).squeeze(-1)
+            entropy = _mean(-(logp_all.exp() * logp_all).sum(-1), mb["mask"])
+            pl = clipped_surrogate(logp, mb["logp"], mb["advantages"], cfg.clip, mb["mask"])
+            vl = value_loss(values, mb["values"], mb["targets"], cfg.clip, cfg.huber_delta, mb["mask"])
+            loss = pl + cfg.value_coef * vl - cfg.entropy_coef * entropy
+            optimizer.zero_grad()
+            loss.backward()
+            nn.utils.clip_grad_norm_(actor.parameters(), cfg.max_grad_norm)
+            nn.utils.clip_grad_norm_(critic.parameters(), cfg.max_grad_norm)
+            optimizer.step()
+            stats["policy_loss"] += pl.item()
+            stats["value_loss"] += vl.item()
+            stats["entropy"] += entropy.item()
+            n += 1
+    del params
+    return {k: v / max(n, 1) for k, v in stats.items()}

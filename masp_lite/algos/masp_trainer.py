@@ -1,0 +1,157 @@
+"""One MASP training iteration: collect an episode in every world, then PPO on both levels.
+
+:class:`MASPTrainer` owns the world, the four networks (:class:`~masp_lite.nets.policies.MASPNets`),
+two Adam optimizers (one per level), two :class:`~masp_lite.algos.mappo.ValueNorm` and one
+``torch.Generator`` that draws every random number of training (action samples, group
+orders, minibatch orders); the world draws spawns from its own generator. Saving and
+restoring :meth:`state_dict` therefore restores training exactly.
+
+Per environment step ``t`` of a rollout (all worlds and agents at once, under
+``torch.inference_mode``):
+
+1. every ``global_step`` steps the Goal Matcher samples a goal per agent; its reward
+   ``R_GM`` (eq. 1) is computed at once against the Hungarian assignment;
+2. the executor samples an action per agent from its goal, a fresh random group order
+   (stored, so the update rebuilds the same groups), and the world steps;
+3. ``R_CAE`` (eq. 5) is computed after the step.
+
+A rollout is one full episode (horizon steps), so both levels bootstrap from 0 at the
+end; the critics see the time left. GAE runs per level on its own time axis (global
+steps for the Goal Matcher), then :func:`~masp_lite.algos.mappo.ppo_update` trains each
+level.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import torch
+
+from ..envs import make
+from ..nets.policies import MASPNets
+from .mappo import MAPPOConfig, RolloutStorage, ValueNorm, gae, ppo_update
+from .rewards import executor_reward, goal_matcher_reward
+
+__all__ = ["MASPTrainer", "sample", "OBS_KEYS"]
+
+OBS_KEYS = ("agent_pos", "agent_vel", "landmark_pos", "obstacle_pos", "alive", "covered", "reached", "t")
+
+
+def sample(logits: torch.Tensor, generator: torch.Generator):
+    """Categorical samples and their log-probabilities via the Gumbel-max trick (seeded)."""
+    u = torch.rand(logits.shape, generator=generator, dtype=logits.dtype).clamp(1e-10, 1.0)
+    a = (logits - torch.log(-torch.log(u))).argmax(-1)
+    logp = torch.gather(torch.log_softmax(logits, -1), -1, a.unsqueeze(-1)).squeeze(-1)
+    return a, logp
+
+
+class MASPTrainer:
+    """MASP on one scenario: ``iteration()`` = one rollout + one update of both levels."""
+
+    def __init__(self, scenario: str, cfg: MAPPOConfig, seed: int = 0, overrides: dict | None = None):
+        self.cfg, self.seed = cfg, int(seed)
+        self.world = make(scenario, num_envs=cfg.num_envs, seed=self.seed, **(overrides or {}))
+        sc = self.world.scenario
+        if sc.kind != "particle":
+            raise ValueError(f"masp training: expected a particle scenario, got {sc.name!r}")
+        self.scale, self.horizon, self.reach = sc.world_size / 2, sc.horizon, sc.reach_distance
+        torch.manual_seed(self.seed)  # network initialisation
+        self.nets = MASPNets(width=cfg.width, group_size=cfg.group_size, gcn_layers=cfg.gcn_layers,
+                             obstacles_seen=cfg.obstacles_seen, global_step=cfg.global_step)
+        n = self.nets
+        self.gm_opt = torch.optim.Adam(list(n.gm.parameters()) + list(n.gm_critic.parameters()), lr=cfg.lr, eps=1e-5)
+        self.cae_opt = torch.optim.Adam(list(n.cae.parameters()) + list(n.cae_critic.parameters()), lr=cfg.lr, eps=1e-5)
+        self.gm_norm, self.cae_norm = ValueNorm(), ValueNorm()
+        self.generator = torch.Generator().manual_seed(self.seed + 10_007)
+        self.iterations = 0
+        self.env_steps = 0
+
+    # ------------------------------------------------------------------ rollout
+    @torch.inference_mode()
+    def collect(self):
+        """One episode in every world; returns (gm data, cae data, episode stats)."""
+        w, n, cfg, g = self.world, self.nets, self.cfg, self.generator
+        obs = w.reset()
+        gm, cae = RolloutStorage(), RolloutStorage()
+        goals = None
+        cov, col = [obs["covered"].all(-1)], []
+        B, N = w.num_envs, w.num_agents
+        for t in range(self.horizon):
+            snap = {k: obs[k].clone() for k in OBS_KEYS}
+            if t % cfg.global_step == 0:
+                goals, logp = sample(n.gm_logits(obs, self.scale), g)
+                v = n.gm_value(obs, self.scale, self.horizon)
+                goal_mask = ~obs["reached"] if w.scenario.varying else None
+                r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask)
+                gm.add(**snap, actions=goals, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
+            perm = torch.rand(B, N, generator=g).argsort(-1)
+            inputs = n.cae_inputs(obs, goals, perm)
+            actions, logp = sample(n.cae_logits(inputs), g)
+            v = n.cae_value(inputs, obs, self.horizon)
+            alive = obs["alive"].clone()
+            obs, info = w.step(torch.where(alive, actions, torch.zeros_like(actions)))
+            goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand(B, N, 2))
+            r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
+                                w.scenario.world_size, cfg.bonus_coef, cfg.distance_coef, cfg.collision_coef)
+            cae.add(**snap, goals=goals, perm=perm, actions=actions, logp=logp, values=v, rewards=r, mask=alive)
+            cov.append(info["covered"].all(-1))
+            col.append(info["collisions"])
+        self.env_steps += self.horizon * B
+        solved = torch.stack(cov, 1)
+        first = torch.where(solved, torch.arange(self.horizon + 1), self.horizon).min(1).values
+        stats = {"sr": float(obs["covered"].float().mean()), "steps": float(first.float().mean()),
+                 "cr": float(torch.stack(col, 1).float().mean())}
+        return self._advantages(gm.stacked(), self.gm_norm, cfg.gm_gamma), \
+            self._advantages(cae.stacked(), self.cae_norm, cfg.gamma), stats
+
+    def _advantages(self, data, norm: ValueNorm, gamma: float):
+        values = norm.denormalize(data["values"])
+        adv, ret = gae(data["rewards"], values, torch.zeros_like(values[0]), gamma, self.cfg.gae_lambda)
+        data["advantages"], data["returns"] = adv, ret
+        norm.update(ret, data["mask"])
+        data["reward_mean"] = data["rewards"]
+        return data
+
+    # ------------------------------------------------------------------ update
+    def _gm_eval(self, mb):
+        obs = {k: mb[k] for k in OBS_KEYS}
+        return self.nets.gm_logits(obs, self.scale), self.nets.gm_value(obs, self.scale, self.horizon)
+
+    def _cae_eval(self, mb):
+        obs = {k: mb[k] for k in OBS_KEYS}
+        inputs = self.nets.cae_inputs(obs, mb["goals"], mb["perm"])
+        return self.nets.cae_logits(inputs), self.nets.cae_value(inputs, obs, self.horizon)
+
+    def iteration(self) -> dict[str, float]:
+        """Collect, update both levels; returns the row logged to ``progress.csv``."""
+        gm_data, cae_data, stats = self.collect()
+        r_gm = float(gm_data.pop("reward_mean")[gm_data["mask"]].mean())
+        r_cae = float(cae_data.pop("reward_mean")[cae_data["mask"]].mean())
+        n, cfg = self.nets, self.cfg
+        s_gm = ppo_update(gm_data, self._gm_eval, n.gm, n.gm_critic, self.gm_opt, cfg, self.gm_norm, self.generator)
+        s_cae = ppo_update(cae_data, self._cae_eval, n.cae, n.cae_critic, self.cae_opt, cfg, self.cae_norm,
+                           self.generator)
+        self.iterations += 1
+        row = {"iteration": self.iterations, "env_steps": self.env_steps, **{f"train_{k}": v for k, v in stats.items()},
+               "gm_reward": r_gm, "cae_reward": r_cae}
+        row.update({f"gm_{k}": v for k, v in s_gm.items()})
+        row.update({f"cae_{k}": v for k, v in s_cae.items()})
+        return row
+
+    # ------------------------------------------------------------------ state
+    def state_dict(self) -> dict:
+        """Everything needed to continue exactly: weights, optimizers, value norms, all RNG states."""
+        return {"nets": self.nets.state_dict(), "gm_opt": self.gm_opt.state_dict(),
+                "cae_opt": self.cae_opt.state_dict(), "gm_norm": self.gm_norm.state_dict(),
+                "cae_norm": self.cae_norm.state_dict(), "generator": self.generator.get_state(),
+                "world_rng": self.world._rng.get_state(), "iterations": self.iterations,
+                "env_steps": self.env_steps, "config": asdict(self.cfg), "seed": self.seed}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.nets.load_state_dict(state["nets"])
+        self.gm_opt.load_state_dict(state["gm_opt"])
+        self.cae_opt.load_state_dict(state["cae_opt"])
+        self.gm_norm.load_state_dict(state["gm_norm"])
+        self.cae_norm.load_state_dict(state["cae_norm"])
+        self.generator.set_state(state["generator"])
+        self.world._rng.set_state(state["world_rng"])
+        self.iterations, self.env_steps = int(state["iterations"]), int(state["env_steps"])

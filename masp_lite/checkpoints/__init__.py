@@ -1,0 +1,130 @@
+"""Shipped MASP weights and the checks every weights file passes before it is used.
+
+A weights file is a ``torch.save`` of plain tensors and numbers (it loads with
+``torch.load(..., weights_only=True)``)::
+
+    {"format": FORMAT, "scenario": "mpe-20", "arch": {...MASPNets.arch...},
+     "state_dict": {...all four networks...}}
+
+``manifest.json`` in this folder lists the shipped files, one entry per scenario: file
+name, SHA-256, architecture, training command, seed, environment steps, wall-clock, the
+machine that trained it and the final evaluation. :func:`load_weights` refuses (one clear
+``ValueError``) a missing, truncated or corrupt file, a file whose hash differs from the
+manifest, another architecture, or weights trained for another scenario. Scenarios with a
+team change, or with overrides such as ``num_agents=100``, use the weights of the preset
+they start from (``mpe-20to10`` -> ``mpe-20``): the networks are size-invariant, and
+this is the paper's zero-shot protocol.
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import torch
+
+__all__ = ["FORMAT", "HERE", "MANIFEST", "save_weights", "load_weights", "default_checkpoint",
+           "base_scenario", "sha256", "atomic_write_bytes"]
+
+FORMAT = "masp-lite/masp-weights/1"
+HERE = Path(__file__).resolve().parent
+MANIFEST = HERE / "manifest.json"
+_BASE = {"mpe-20to10": "mpe-20", "mpe-50to20": "mpe-50"}
+
+
+def base_scenario(scenario) -> str:
+    """The preset whose weights a scenario uses: its own name, or the N1 preset of a team change."""
+    name = scenario if isinstance(scenario, str) else scenario.name
+    return _BASE.get(name, name)
+
+
+def sha256(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def atomic_write_bytes(path, data: bytes) -> None:
+    """Write ``data`` to a temporary file beside ``path``, then ``os.replace`` it in one step."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        os.chmod(tmp, 0o644)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def save_weights(path, nets, scenario: str) -> None:
+    """Save ``nets`` (a :class:`~masp_lite.nets.policies.MASPNets`) atomically as a weights file."""
+    buf = io.BytesIO()
+    torch.save({"format": FORMAT, "scenario": base_scenario(scenario), "arch": dict(nets.arch),
+                "state_dict": {k: v.detach().cpu().clone() for k, v in nets.state_dict().items()}}, buf)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _manifest() -> dict:
+    if not MANIFEST.exists():
+        return {}
+    return json.loads(MANIFEST.read_text())
+
+
+def default_checkpoint(scenario) -> Path:
+    """The shipped weights file for ``scenario``; a clear error when none is shipped."""
+    name = base_scenario(scenario)
+    entry = _manifest().get(name)
+    if entry is None:
+        raise ValueError(f"masp: no shipped weights for scenario {name!r}; expected one of "
+                         f"{sorted(_manifest())} or a --checkpoint PATH")
+    return HERE / entry["file"]
+
+
+def read_weights(path) -> dict:
+    """Load and validate the raw record of a weights file (no networks built)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"checkpoint {str(path)!r}: expected an existing weights file")
+    shipped = {v["file"]: v for v in _manifest().values()}
+    if path.resolve().parent == HERE and path.name in shipped and sha256(path) != shipped[path.name]["sha256"]:
+        raise ValueError(f"checkpoint {path.name!r}: contents differ from manifest.json (corrupt or replaced)")
+    try:
+        rec = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:  # truncated zip, wrong pickle, ...
+        raise ValueError(f"checkpoint {str(path)!r}: expected a MASP weights file, could not read it "
+                         f"({type(e).__name__}: {str(e)[:80]})") from None
+    if not isinstance(rec, dict) or rec.get("format") != FORMAT:
+        raise ValueError(f"checkpoint {str(path)!r}: expected format {FORMAT!r}, got "
+                         f"{rec.get('format') if isinstance(rec, dict) else type(rec).__name__!r}")
+    return rec
+
+
+def load_weights(path=None, scenario=None, any_scenario: bool = False):
+    """Build :class:`~masp_lite.nets.policies.MASPNets` from a weights file; returns ``(nets, record)``.
+
+    ``path`` ``None`` means the shipped file for ``scenario``. Unless ``any_scenario``,
+    the file must have been trained for ``base_scenario(scenario)``.
+    """
+    from ..nets.policies import MASPNets
+    if path is None:
+        if scenario is None:
+            raise ValueError("load_weights: expected a path or a scenario")
+        path = default_checkpoint(scenario)
+    rec = read_weights(path)
+    if scenario is not None and not any_scenario and rec["scenario"] != base_scenario(scenario):
+        raise ValueError(f"checkpoint {str(path)!r} was trained for {rec['scenario']!r}; expected weights for "
+                         f"{base_scenario(scenario)!r} (pass any_scenario=True to use them anyway)")
+    try:
+        nets = MASPNets(**rec["arch"])
+        nets.load_state_dict(rec["state_dict"])
+    except (TypeError, RuntimeError, KeyError) as e:
+        raise ValueError(f"checkpoint {str(path)!r}: architecture does not match MASPNets "
+                         f"({type(e).__name__}: {str(e)[:120]})") from None
+    return nets, rec

@@ -1,0 +1,297 @@
+"""MASP's two policies and their centralized critics, and what they observe.
+
+* :class:`GoalMatcher` (high level, section "Goal Matcher"): agent graph and goal graph
+  (fully connected, edges 1) -> embeddings (Linear + ReLU to ``L``) -> one
+  :class:`~masp_lite.nets.encoders.SelfEncoder` per graph -> :class:`~masp_lite.nets.encoders.CrossEncoder`
+  -> per-agent logits over goals. Nodes hold map-normalised positions (``pos / (world_size/2)``)
+  and velocities (agents) or positions and a covered flag (goals); the Cross-Encoder's
+  distance ``D`` is normalised the same way, so one network serves every map size.
+  The graphs are the same for every agent, so they are encoded once per world; only
+  the Cross-Encoder is per agent. Dropped agents are masked out of the agent graph.
+* :class:`CoordinatedActionExecutor` (low level, section "Coordinated Action Executor"):
+  :class:`~masp_lite.nets.fusion.GroupInformationFusion` over :func:`pair_features`, plus
+  the goal embedding (MLP over :func:`goal_features` of the assigned goal), plus an
+  obstacle embedding, -> MLP -> logits over the 5 MPE actions. **Obstacles** (which the
+  paper's description of the executor does not mention) are seen as the relative
+  positions of the ``obstacles_seen`` nearest obstacles (:func:`obstacle_features`,
+  clipped at ``SENSE`` metres and padded when there are fewer), embedded by an MLP and
+  concatenated with the fusion feature and the goal embedding before the final MLP.
+* Critics (CTDE: centralized training, decentralized execution): :class:`GoalMatcherCritic`
+  pools the whole agent and goal graphs; :class:`ExecutorCritic` is the executor's
+  architecture with global inputs (:func:`global_features`: fractions of landmarks covered
+  and reached, time left). Only the actors are needed to act.
+
+All parameters are shared by the agents and every weight acts per node, pair or group,
+so the networks run for any team size. Executor inputs are in metres (MPE's dynamics do
+not scale with the map); relative vectors are clipped at ``SENSE`` = 1 m for neighbours
+and obstacles (collisions happen below 0.2 m).
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from ..envs.particle import NUM_ACTIONS
+from .encoders import CrossEncoder, SelfEncoder, mlp
+from .fusion import GroupInformationFusion
+
+__all__ = ["GoalMatcher", "GoalMatcherCritic", "CoordinatedActionExecutor", "ExecutorCritic",
+           "pair_features", "goal_features", "obstacle_features", "global_features", "gm_inputs",
+           "MAX_SPEED", "SENSE"]
+
+MAX_SPEED = 2.0
+"""MPE's terminal speed under a constant action (m/s); velocities are divided by it."""
+SENSE = 1.0
+"""Metres at which neighbour and obstacle vectors are clipped."""
+
+PAIR_FEATURES, GOAL_FEATURES, OBSTACLE_FEATURES, GLOBAL_FEATURES = 6, 6, 3, 3
+
+
+def _clip(rel: torch.Tensor, radius: float) -> tuple[torch.Tensor, torch.Tensor]:
+    d = rel.norm(dim=-1, keepdim=True)
+    return rel * (radius / d.clamp(min=radius)), d
+
+
+def pair_features(pos: torch.Tensor, vel: torch.Tensor) -> torch.Tensor:
+    """(B, N, N, 6): agent ``j`` seen from agent ``k`` at ``[b, k, j]``.
+
+    ``[rel / SENSE (2, clipped to norm 1), min(dist, SENSE) / SENSE, (v_j - v_k) / MAX_SPEED (2),
+    is_self]``.
+    """
+    rel, d = _clip(pos.unsqueeze(1) - pos.unsqueeze(2), SENSE)
+    dv = (vel.unsqueeze(1) - vel.unsqueeze(2)) / MAX_SPEED
+    N = pos.shape[1]
+    eye = torch.eye(N, dtype=pos.dtype, device=pos.device).expand(*pos.shape[:1], N, N).unsqueeze(-1)
+    return torch.cat([rel / SENSE, d.clamp(max=SENSE) / SENSE, dv, eye], dim=-1)
+
+
+def goal_features(pos: torch.Tensor, vel: torch.Tensor, goal_pos: torch.Tensor) -> torch.Tensor:
+    """(B, N, 6): each agent's assigned goal ``goal_pos`` (B, N, 2) seen from the agent.
+
+    ``[unit direction (2), min(dist, 1 m), log(1 + dist), own velocity / MAX_SPEED (2)]``.
+    """
+    rel = goal_pos - pos
+    d = rel.norm(dim=-1, keepdim=True)
+    unit = rel / d.clamp(min=1e-6)
+    return torch.cat([unit, d.clamp(max=1.0), torch.log1p(d), vel / MAX_SPEED], dim=-1)
+
+
+def obstacle_features(pos: torch.Tensor, obstacle_pos: torch.Tensor, count: int) -> torch.Tensor:
+    """(B, N, 3 * count): the ``count`` nearest obstacles, nearest first.
+
+    Each is ``[rel / SENSE (clipped to norm 1), min(dist, SENSE) / SENSE]``; missing ones
+    (fewer than ``count`` obstacles) read ``[0, 0, 1]``, an obstacle at the sensing edge.
+    """
+    B, N = pos.shape[:2]
+    K = obstacle_pos.shape[1]
+    pad = torch.tensor([0.0, 0.0, 1.0], dtype=pos.dtype, device=pos.device)
+    if K == 0:
+        return pad.repeat(B, N, count)
+    rel = obstacle_pos.unsqueeze(1) - pos.unsqueeze(2)                  # (B, N, K, 2)
+    d = rel.norm(dim=-1)
+    k = min(count, K)
+    d_near, idx = d.topk(k, dim=-1, largest=False)
+    rel_near = torch.gather(rel, 2, idx.unsqueeze(-1).expand(B, N, k, 2))
+    rel_c, _ = _clip(rel_near, SENSE)
+    feats = torch.cat([rel_c / SENSE, d_near.clamp(max=SENSE).unsqueeze(-1) / SENSE], dim=-1)
+    if k < count:
+        feats = torch.cat([feats, pad.expand(B, N, count - k, 3)], dim=2)
+    return feats.reshape(B, N, 3 * count)
+
+
+def global_features(obs: dict, horizon: int) -> torch.Tensor:
+    """(B, N, 3) centralized inputs for the critics: landmarks covered now, ever reached, time left."""
+    cov = obs["covered"].to(obs["agent_pos"].dtype).mean(-1, keepdim=True)
+    rea = obs["reached"].to(cov.dtype).mean(-1, keepdim=True)
+    left = 1.0 - obs["t"].to(cov.dtype).unsqueeze(-1) / horizon
+    return torch.cat([cov, rea, left], dim=-1).unsqueeze(1).expand(-1, obs["alive"].shape[1], -1)
+
+
+def gm_inputs(obs: dict, scale: float):
+    """Goal Matcher inputs: agent nodes (B, N, 4), goal nodes (B, M, 3), distances (B, N, M)."""
+    a = torch.cat([obs["agent_pos"] / scale, obs["agent_vel"] / MAX_SPEED], dim=-1)
+    g = torch.cat([obs["landmark_pos"] / scale, obs["covered"].to(a.dtype).unsqueeze(-1)], dim=-1)
+    dist = torch.cdist(obs["agent_pos"], obs["landmark_pos"]) / scale
+    return a, g, dist
+
+
+class _GraphEncoders(nn.Module):
+    def __init__(self, width: int):
+        super().__init__()
+        self.embed_agent = mlp([4, width], last_activation=True)
+        self.embed_goal = mlp([3, width], last_activation=True)
+        self.agent_encoder = SelfEncoder(width)
+        self.goal_encoder = SelfEncoder(width)
+
+    def encode(self, agent_x, goal_x, alive):
+        ya, _ = self.agent_encoder(self.embed_agent(agent_x), alive)
+        yt, _ = self.goal_encoder(self.embed_goal(goal_x))
+        return ya, yt
+
+
+class GoalMatcher(_GraphEncoders):
+    """High-level actor: ``forward(agent_x, goal_x, dist, alive) -> logits`` (B, N, M).
+
+    Agent ``k``'s categorical over goals is ``softmax(logits[:, k])`` = ``S_intra^k``
+    (eq. 4); at evaluation agent ``k`` takes the goal of highest matching score.
+    """
+
+    def __init__(self, width: int = 32):
+        super().__init__(width)
+        self.cross = CrossEncoder(width)
+
+    def forward(self, agent_x, goal_x, dist, alive):
+        ya, yt = self.encode(agent_x, goal_x, alive)
+        return self.cross(ya, yt, dist)
+
+
+class GoalMatcherCritic(_GraphEncoders):
+    """Centralized high-level critic: ``forward(agent_x, goal_x, alive, extra) -> (B, N)``.
+
+    Agent ``k``'s value reads its own encoded node, the mean of the alive agents' nodes,
+    the mean of the goal nodes and :func:`global_features`.
+    """
+
+    def __init__(self, width: int = 32):
+        super().__init__(width)
+        self.head = mlp([3 * width + GLOBAL_FEATURES, width, 1])
+
+    def forward(self, agent_x, goal_x, alive, extra):
+        ya, yt = self.encode(agent_x, goal_x, alive)
+        w = alive.to(ya.dtype).unsqueeze(-1)
+        pooled = (ya * w).sum(1, keepdim=True) / w.sum(1, keepdim=True).clamp(min=1)
+        x = torch.cat([ya, pooled.expand_as(ya), yt.mean(1, keepdim=True).expand_as(ya), extra], dim=-1)
+        return self.head(x).squeeze(-1)
+
+
+class CoordinatedActionExecutor(nn.Module):
+    """Low-level actor: ``forward(pair, groups, alive, goal_f, obstacle_f) -> logits`` (B, N, 5)."""
+
+    outputs = NUM_ACTIONS
+    extra_features = 0
+
+    def __init__(self, width: int = 32, gcn_layers: int = 1, obstacles_seen: int = 2):
+        super().__init__()
+        self.fusion = GroupInformationFusion(PAIR_FEATURES, width, gcn_layers)
+        self.goal_embed = mlp([GOAL_FEATURES, width], last_activation=True)
+        self.obstacle_embed = mlp([OBSTACLE_FEATURES * obstacles_seen, width], last_activation=True)
+        self.head = mlp([3 * width + self.extra_features, width, width, self.outputs])
+
+    def features(self, pair, groups, alive, goal_f, obstacle_f):
+        return [self.fusion(pair, groups, alive), self.goal_embed(goal_f), self.obstacle_embed(obstacle_f)]
+
+    def forward(self, pair, groups, alive, goal_f, obstacle_f):
+        return self.head(torch.cat(self.features(pair, groups, alive, goal_f, obstacle_f), dim=-1))
+
+
+class ExecutorCritic(CoordinatedActionExecutor):
+    """Centralized low-level critic: the executor's layout plus :func:`global_features` -> (B, N)."""
+
+    outputs = 1
+    extra_features = GLOBAL_FEATURES
+
+    def forward(self, pair, groups, alive, goal_f, obstacle_f, extra):
+        x = torch.cat(self.features(pair, groups, alive, goal_f, obstacle_f) + [extra], dim=-1)
+        return self.head(x).squeeze(-1)
+
+
+class MASPNets(nn.Module):
+    """Both levels' actors and critics, with the architecture in ``arch`` (saved in checkpoints).
+
+    ``arch``: ``width`` (L = 32), ``group_size`` (N_g = 3), ``gcn_layers``, ``obstacles_seen``,
+    ``global_step`` (environment steps per Goal Matcher decision, 3 in the paper).
+    """
+
+    def __init__(self, width: int = 32, group_size: int = 3, gcn_layers: int = 1,
+                 obstacles_seen: int = 2, global_step: int = 3):
+        super().__init__()
+        for name, v, low in (("width", width, 1), ("group_size", group_size, 2), ("gcn_layers", gcn_layers, 1),
+                             ("obstacles_seen", obstacles_seen, 1), ("global_step", global_step, 1)):
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"{name}: expected an int >= {low}, got {v!r}")
+        self.arch = dict(width=width, group_size=group_size, gcn_layers=gcn_layers,
+                         obstacles_seen=obstacles_seen, global_step=global_step)
+        self.gm = GoalMatcher(width)
+        self.gm_critic = GoalMatcherCritic(width)
+        self.cae = CoordinatedActionExecutor(width, gcn_layers, obstacles_seen)
+        self.cae_critic = ExecutorCritic(width, gcn_layers, obstacles_seen)
+
+    def gm_logits(self, obs: dict, scale: float) -> torch.Tensor:
+        a, g, dist = gm_inputs(obs, scale)
+        return self.gm(a, g, dist, obs["alive"])
+
+    def gm_value(self, obs: dict, scale: float, horizon: int) -> torch.Tensor:
+        a, g, _ = gm_inputs(obs, scale)
+        return self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
+
+    def cae_inputs(self, obs: dict, goals: torch.Tensor, perm: torch.Tensor) -> tuple:
+        """Executor inputs for goal indices ``goals`` (B, N) and group order ``perm`` (B, N)."""
+        from .fusion import group_division
+        pos, vel = obs["agent_pos"], obs["agent_vel"]
+        goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos))
+        return (pair_features(pos, vel), group_division(perm, self.arch["group_size"]), obs["alive"],
+                goal_features(pos, vel, goal_pos),
+                obstacle_features(pos, obs["obstacle_pos"], self.arch["obstacles_seen"]))
+
+    def cae_logits(self, inputs: tuple) -> torch.Tensor:
+        return self.cae(*inputs)
+
+    def cae_value(self, inputs: tuple, obs: dict, horizon: int) -> torch.Tensor:
+        return self.cae_critic(*inputs, global_features(obs, horizon))
+
+
+class MASPPolicy:
+    """``masp`` for :mod:`masp_lite.eval`: trained Goal Matcher + executor on a particle world.
+
+    ``checkpoint``: a weights file (default: the shipped one for the world's scenario, see
+    :mod:`masp_lite.checkpoints`). ``seed`` seeds the random group division. ``global_step``
+    overrides the checkpoint's Goal Matcher period. ``deterministic``: take the most likely
+    goal and action (the paper's "highest matching score"); ``False`` samples both.
+    """
+
+    def __init__(self, world, checkpoint: str | None = None, seed: int = 0, global_step: int | None = None,
+                 deterministic: bool = True, any_scenario: bool = False):
+        from ..checkpoints import load_weights
+        if getattr(world.scenario, "kind", None) != "particle":
+            raise ValueError("masp: expected a particle world (mpe-* scenario)")
+        self.world = world
+        self.nets, self.meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
+        self.nets.eval()
+        gs = self.nets.arch["global_step"] if global_step is None else global_step
+        if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
+            raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
+        self.global_step, self.deterministic, self.seed = gs, bool(deterministic), int(seed)
+        self.scale = world.scenario.world_size / 2
+        self.generator = torch.Generator().manual_seed(self.seed)
+        self.goals = None
+
+    @classmethod
+    def from_nets(cls, world, nets: MASPNets, seed: int = 0, deterministic: bool = True) -> "MASPPolicy":
+        """A policy around networks in memory (used by training's periodic evaluation)."""
+        self = cls.__new__(cls)
+        self.world, self.nets, self.meta = world, nets, {}
+        self.global_step, self.deterministic, self.seed = nets.arch["global_step"], deterministic, int(seed)
+        self.scale = world.scenario.world_size / 2
+        self.generator = torch.Generator().manual_seed(self.seed)
+        self.goals = None
+        return self
+
+    def reset(self, obs) -> None:
+        self.goals = None
+
+    def _pick(self, logits):
+        if self.deterministic:
+            return logits.argmax(-1)
+        u = torch.rand(logits.shape, generator=self.generator).to(logits.device)
+        return (logits - torch.log(-torch.log(u.clamp(1e-10, 1.0)))).argmax(-1)
+
+    @torch.inference_mode()
+    def act(self, obs) -> torch.Tensor:
+        due = obs["t"] % self.global_step == 0
+        if self.goals is None or bool(due.any()):
+            new = self._pick(self.nets.gm_logits(obs, self.scale))
+            self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
+        B, N = self.goals.shape
+        perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(self.goals.device)
+        actions = self._pick(self.nets.cae_logits(self.nets.cae_inputs(obs, self.goals, perm)))
+        return torch.where(obs["alive"], actions, torch.zeros_like(actions))

@@ -1,0 +1,155 @@
+"""MAPPO pieces and MASP's rewards on hand-worked numbers."""
+import pytest
+import torch
+
+from masp_lite.algos.assignment import hungarian
+from masp_lite.algos.mappo import (MAPPOConfig, RolloutStorage, ValueNorm, clipped_surrogate, gae, ppo_update,
+                                   value_loss)
+from masp_lite.algos.rewards import executor_reward, goal_matcher_reward, repeat_counts
+
+
+def test_gae_one_step_and_lambda_one_is_discounted_return():
+    adv, ret = gae(torch.tensor([1.0]), torch.tensor([0.0]), torch.tensor(2.0), gamma=0.5, lam=0.9)
+    assert float(adv[0]) == pytest.approx(2.0) and float(ret[0]) == pytest.approx(2.0)
+    torch.manual_seed(0)
+    r, v = torch.randn(6, 3), torch.randn(6, 3)
+    adv, ret = gae(r, v, torch.zeros(3), gamma=0.9, lam=1.0)
+    disc = torch.zeros(6, 3)
+    acc = torch.zeros(3)
+    for t in reversed(range(6)):
+        acc = r[t] + 0.9 * acc
+        disc[t] = acc
+    torch.testing.assert_close(ret, disc)
+    torch.testing.assert_close(adv, disc - v)
+
+
+def test_gae_lambda_zero_is_td_error_and_done_cuts():
+    r, v = torch.tensor([1.0, 2.0, 3.0]), torch.tensor([0.5, 1.0, 1.5])
+    adv, _ = gae(r, v, torch.tensor(4.0), gamma=0.9, lam=0.0)
+    torch.testing.assert_close(adv, torch.tensor([1 + 0.9 * 1.0 - 0.5, 2 + 0.9 * 1.5 - 1.0, 3 + 0.9 * 4 - 1.5]))
+    adv, _ = gae(r, v, torch.tensor(4.0), gamma=0.9, lam=1.0, not_done=torch.tensor([1.0, 0.0, 1.0]))
+    assert float(adv[1]) == pytest.approx(2.0 - 1.0)      # episode ended at step 1: no bootstrap
+
+
+def test_clipped_surrogate():
+    old = torch.zeros(3)
+    logp = torch.log(torch.tensor([1.1, 1.5, 0.5]))
+    adv = torch.tensor([1.0, 1.0, -1.0])
+    # ratios 1.1 (inside), 1.5 -> clipped 1.2 for A > 0, 0.5 -> clipped 0.8 for A < 0: min(-0.5, -0.8) = -0.8
+    expect = -(1.1 + 1.2 - 0.8) / 3
+    assert float(clipped_surrogate(logp, old, adv, 0.2)) == pytest.approx(expect, rel=1e-5)
+    mask = torch.tensor([True, False, False])
+    assert float(clipped_surrogate(logp, old, adv, 0.2, mask)) == pytest.approx(-1.1, rel=1e-5)
+
+
+def test_value_loss_takes_worse_of_clipped_and_unclipped():
+    v, old, tgt = torch.tensor([2.0]), torch.tensor([0.0]), torch.tensor([3.0])
+    # unclipped error 1 -> 0.5; clipped value 0.2 -> error 2.8 -> 3.92
+    assert float(value_loss(v, old, tgt, clip=0.2, delta=10.0)) == pytest.approx(0.5 * 2.8**2)
+    # Huber beyond delta is linear
+    assert float(value_loss(torch.tensor([0.0]), torch.tensor([0.0]), torch.tensor([20.0]), 0.2, 10.0)) \
+        == pytest.approx(10.0 * (20.0 - 5.0))
+
+
+def test_value_norm_round_trip_and_statistics():
+    vn = ValueNorm(beta=0.9)
+    g = torch.Generator().manual_seed(0)
+    for _ in range(200):
+        vn.update(torch.randn(1000, generator=g) * 3 + 5)
+    x = torch.tensor([5.0, 8.0])
+    z = vn.normalize(x)
+    assert float(z[0]) == pytest.approx(0.0, abs=0.1) and float(z[1]) == pytest.approx(1.0, abs=0.1)
+    torch.testing.assert_close(vn.denormalize(z), x)
+
+
+def test_rollout_storage_minibatches_partition_rows():
+    s = RolloutStorage()
+    for t in range(5):
+        s.add(x=torch.arange(3) + 10 * t)
+    data = s.stacked()
+    seen = torch.cat([mb["x"] for mb in RolloutStorage.minibatches(data, 4, torch.Generator().manual_seed(1))])
+    assert sorted(seen.tolist()) == sorted(data["x"].flatten().tolist())
+
+
+def test_ppo_update_moves_policy_towards_positive_advantages():
+    torch.manual_seed(0)
+    actor, critic = torch.nn.Linear(2, 3), torch.nn.Linear(2, 1)
+    opt = torch.optim.Adam(list(actor.parameters()) + list(critic.parameters()), lr=1e-2)
+    x = torch.ones(8, 4, 2, 2)
+    actions = torch.zeros(8, 4, 2, dtype=torch.long)
+    actions[4:] = 1                                   # action 1 was bad, action 0 good
+    adv = torch.where(actions == 0, 1.0, -1.0)
+    with torch.no_grad():
+        before = torch.softmax(actor(x[0, 0, 0]), -1)
+        logp = torch.gather(torch.log_softmax(actor(x), -1), -1, actions.unsqueeze(-1)).squeeze(-1)
+    data = {"x": x, "actions": actions, "logp": logp, "values": torch.zeros(8, 4, 2),
+            "returns": torch.ones(8, 4, 2), "advantages": adv, "mask": torch.ones(8, 4, 2, dtype=torch.bool)}
+    cfg = MAPPOConfig(ppo_epochs=3, num_minibatches=2)
+    stats = ppo_update(data, lambda mb: (actor(mb["x"]), critic(mb["x"]).squeeze(-1)), actor, critic, opt, cfg,
+                       ValueNorm(), torch.Generator().manual_seed(0))
+    assert set(stats) == {"policy_loss", "value_loss", "entropy"}
+    with torch.no_grad():
+        after = torch.softmax(actor(x[0, 0, 0]), -1)
+    assert after[0] > before[0] and after[1] < before[1]
+
+
+def test_config_rejects_bad_values():
+    with pytest.raises(ValueError, match="num_envs"):
+        MAPPOConfig(num_envs=0)
+    with pytest.raises(ValueError, match="gamma"):
+        MAPPOConfig(gamma=1.5)
+    with pytest.raises(ValueError, match="group_size"):
+        MAPPOConfig(group_size=1)
+
+
+# ----------------------------------------------------------------------------- rewards
+AGENTS = torch.tensor([[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]])
+GOALS = torch.tensor([[[0.0, 1.0], [1.0, 1.0], [2.0, 1.0]]])  # Hungarian: agent i -> goal i
+ALIVE = torch.ones(1, 3, dtype=torch.bool)
+
+
+def test_r_gm_zero_when_matching_hungarian():
+    assert hungarian(AGENTS, GOALS).tolist() == [[0, 1, 2]]
+    r = goal_matcher_reward(AGENTS, GOALS, torch.tensor([[0, 1, 2]]), ALIVE)
+    assert r.tolist() == [[0.0, 0.0, 0.0]]
+
+
+def test_r_gm_repeats():
+    goals = torch.tensor([[1, 1, 2]])
+    assert repeat_counts(goals, ALIVE, 3).tolist() == [[1, 1, 0]]
+    r = goal_matcher_reward(AGENTS, GOALS, goals, ALIVE)
+    # agent 0: not Hungarian, one repeat -> -(1 + 1/3); agent 1 picked its Hungarian goal -> 0
+    assert r[0, 0].item() == pytest.approx(-(1 + 1 / 3))
+    assert r[0, 1].item() == 0.0 and r[0, 2].item() == 0.0
+
+
+def test_r_gm_distance_ratio_without_repeats():
+    goals = torch.tensor([[1, 0, 2]])
+    r = goal_matcher_reward(AGENTS, GOALS, goals, ALIVE)
+    d_h = 3.0
+    d_m = 2 * 2**0.5 + 1.0
+    assert r[0, 0].item() == pytest.approx(-(1 - d_h / d_m), rel=1e-5)
+    assert r[0, 1].item() == pytest.approx(-(1 - d_h / d_m), rel=1e-5)
+    assert r[0, 2].item() == 0.0
+
+
+def test_r_gm_dead_agents_get_nothing_and_do_not_count_as_repeats():
+    alive = torch.tensor([[True, False, True]])
+    r = goal_matcher_reward(AGENTS, GOALS, torch.tensor([[0, 0, 2]]), alive)
+    assert r.tolist() == [[0.0, 0.0, 0.0]]
+
+
+def test_r_gm_rejects_bad_goals():
+    with pytest.raises(ValueError, match="goals"):
+        goal_matcher_reward(AGENTS, GOALS, torch.tensor([[0.0, 1.0, 2.0]]), ALIVE)
+
+
+def test_executor_reward_terms():
+    pos = torch.tensor([[[0.0, 0.0], [3.0, 0.0]]])
+    goal = torch.tensor([[[0.1, 0.0], [3.0, 2.0]]])
+    coll = torch.tensor([[0, 2]])
+    alive = torch.tensor([[True, True]])
+    r = executor_reward(pos, goal, coll, alive, reach=0.15, world_size=8.0, alpha=1.0, beta=2.0, gamma=0.5)
+    assert r[0, 0].item() == pytest.approx(1.0 - 2.0 * 0.1 / 4.0)
+    assert r[0, 1].item() == pytest.approx(-2.0 * 2.0 / 4.0 - 0.5 * 2)
+    assert executor_reward(pos, goal, coll, ~alive, 0.15, 8.0).tolist() == [[0.0, 0.0]]

@@ -1,0 +1,119 @@
+"""Training CLI: resume after an interruption reproduces an uninterrupted run; bad input; weights files."""
+import json
+
+import pytest
+import torch
+
+from masp_lite.__main__ import main
+from masp_lite.algos.mappo import MAPPOConfig
+from masp_lite.algos.train import parse_config, train
+from masp_lite.checkpoints import load_weights, save_weights
+from masp_lite.nets.policies import MASPNets
+
+TINY = dict(num_envs=3, updates=4, checkpoint_every=2, eval_every=2, eval_episodes=2, ppo_epochs=1,
+            num_minibatches=2, width=8)
+
+
+class Killed(Exception):
+    pass
+
+
+def _kill_at(n):
+    def hook(trainer):
+        if trainer.iterations == n:
+            raise Killed
+    return hook
+
+
+def test_interrupted_and_resumed_run_ends_with_the_same_parameters(tmp_path):
+    cfg = MAPPOConfig(**TINY)
+    whole = train("mpe-5", cfg, tmp_path / "whole", seed=3, progress=False)
+    with pytest.raises(Killed):  # killed after iteration 3; the last checkpoint is iteration 2
+        train("mpe-5", cfg, tmp_path / "cut", seed=3, progress=False, on_iteration=_kill_at(3))
+    assert not (tmp_path / "cut" / "manifest.json").exists()
+    resumed = train("mpe-5", cfg, tmp_path / "cut", seed=3, resume=True, progress=False)
+    a = torch.load(tmp_path / "whole" / "state.pt", weights_only=True)
+    b = torch.load(tmp_path / "cut" / "state.pt", weights_only=True)
+    assert a["iterations"] == b["iterations"] == 4
+    for k in a["nets"]:
+        assert torch.equal(a["nets"][k], b["nets"][k]), k
+    assert torch.equal(a["generator"], b["generator"])
+    assert whole["env_steps"] == resumed["env_steps"] == 4 * 3 * 18
+    assert whole["final_eval"] == {**resumed["final_eval"], "decision_ms": whole["final_eval"]["decision_ms"]}
+    rows = (tmp_path / "cut" / "progress.csv").read_text().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["1", "2", "3", "4"]
+    m = json.loads((tmp_path / "cut" / "manifest.json").read_text())
+    assert m["seed"] == 3 and m["scenario"] == "mpe-5" and m["wall_clock_s"] > 0 and m["config"]["updates"] == 4
+
+
+def test_resume_errors_leave_files_alone(tmp_path):
+    cfg = MAPPOConfig(**{**TINY, "updates": 2})
+    with pytest.raises(ValueError, match="--resume"):
+        train("mpe-5", cfg, tmp_path / "none", progress=False, resume=True)
+    out = tmp_path / "run"
+    train("mpe-5", cfg, out, progress=False)
+    before = (out / "state.pt").read_bytes()
+    with pytest.raises(ValueError, match="exists"):
+        train("mpe-5", cfg, out, progress=False)
+    with pytest.raises(ValueError, match="trained on"):
+        train("mpe-20", cfg, out, progress=False, resume=True)
+    with pytest.raises(ValueError, match="differs in"):
+        train("mpe-5", MAPPOConfig(**{**TINY, "updates": 2, "lr": 1e-3}), out, progress=False, resume=True)
+    assert (out / "state.pt").read_bytes() == before
+    (out / "state.pt").write_bytes(before[: len(before) // 2])
+    with pytest.raises(ValueError, match="could not read"):
+        train("mpe-5", cfg, out, progress=False, resume=True)
+
+
+def test_weights_checks(tmp_path):
+    torch.manual_seed(0)
+    nets = MASPNets(width=8)
+    path = tmp_path / "w.pt"
+    save_weights(path, nets, "mpe-20")
+    loaded, rec = load_weights(path, scenario="mpe-20to10")       # a team change uses its N1 weights
+    assert rec["scenario"] == "mpe-20" and loaded.arch == nets.arch
+    for k, v in nets.state_dict().items():
+        assert torch.equal(loaded.state_dict()[k], v)
+    with pytest.raises(ValueError, match="trained for 'mpe-20'"):
+        load_weights(path, scenario="mpe-5")
+    raw = torch.load(path, weights_only=True)
+    raw["arch"]["width"] = 16
+    torch.save(raw, tmp_path / "arch.pt")
+    with pytest.raises(ValueError, match="architecture"):
+        load_weights(tmp_path / "arch.pt", scenario="mpe-20")
+    (tmp_path / "cut.pt").write_bytes(path.read_bytes()[:1000])
+    with pytest.raises(ValueError, match="could not read"):
+        load_weights(tmp_path / "cut.pt")
+    torch.save({"format": "other"}, tmp_path / "other.pt")
+    with pytest.raises(ValueError, match="format"):
+        load_weights(tmp_path / "other.pt")
+    with pytest.raises(ValueError, match="existing"):
+        load_weights(tmp_path / "missing.pt")
+
+
+def test_parse_config_and_cli_errors(tmp_path, capsys):
+    cfg, over = parse_config(["updates=7", "lr=0.001", "num_obstacles=2"])
+    assert cfg.updates == 7 and cfg.lr == 0.001 and over == {"num_obstacles": 2}
+    with pytest.raises(ValueError, match="unknown"):
+        parse_config(["bogus=1"])
+    with pytest.raises(ValueError, match="expected a int"):
+        parse_config(["updates=many"])
+    assert main(["train", "--method", "nope", "--scenario", "mpe-5", "--out", str(tmp_path / "x")]) == 2
+    assert "unknown method" in capsys.readouterr().err
+    assert main(["train", "--scenario", "mpe-5", "--out", str(tmp_path / "y"), "--resume", "--quiet"]) == 2
+    assert not (tmp_path / "y").exists()
+
+
+def test_shipped_weights_load_and_act():
+    from masp_lite.checkpoints import MANIFEST, _manifest
+    from masp_lite.envs import make
+    from masp_lite.nets.policies import MASPPolicy
+    if not MANIFEST.exists():
+        pytest.skip("no shipped weights in this version")
+    for name, entry in _manifest().items():
+        assert (MANIFEST.parent / entry["file"]).stat().st_size < 1_000_000
+        w = make(name, num_envs=2, seed=0)
+        pol = MASPPolicy(w)
+        obs = w.reset()
+        pol.reset(obs)
+        assert pol.act(obs).shape == (2, w.num_agents)
