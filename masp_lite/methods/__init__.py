@@ -22,6 +22,7 @@ METHODS: dict[str, str] = {
     "h-orca": "masp_lite.planners.methods:HOrca",
     "h-rrtstar": "masp_lite.planners.methods:HRRTStar",
     "h-voronoi": "masp_lite.planners.methods:HVoronoi",
+    "masp": "masp_lite.nets.policies:MASPPolicy",
 }
 
 
