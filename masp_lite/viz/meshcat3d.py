@@ -1,0 +1,265 @@
+"""3-D playback of drone episodes with meshcat: live in JupyterLab, or as a standalone page.
+
+An episode is recorded once (:func:`record_episode`: positions, attitudes, who is flying,
+which landmarks are reached, every ``stride`` steps), then drawn as a meshcat scene:
+
+* each drone: a hub, four arms and four rotor discs (red: spin −1, blue: spin +1), with
+  its landmark's colour on the hub; its whole path as a thin line (the trail);
+* landmarks: balls of the scenario's radius; a green halo appears when one is reached;
+* crashes: a red ball appears where a drone crashed, and the drone disappears;
+* the floor: a grey tile of the map's size.
+
+The motion is a meshcat ``Animation`` (position, quaternion and scale tracks), so the
+viewer plays it by itself (its "Animations" panel has play / pause / speed).
+
+Two ways to show it:
+
+* :func:`play_to_html` / :func:`episode_html` — a **standalone HTML page**: meshcat's own
+  static viewer (``main.min.js`` shipped in the ``meshcat`` package) followed by the
+  scene's commands, embedded as base64 blobs exactly as meshcat's server writes them for
+  its ``static_html``. No server is started: the commands are recorded by a window object
+  that only stores them (:class:`RecordingWindow`). :func:`notebook_html` wraps the page
+  in an ``<iframe srcdoc=…>`` for a notebook cell, which works without a kernel-side server.
+* :class:`LiveViewer` — a **meshcat server** bound to ``127.0.0.1`` (meshcat's own
+  subprocess), as a context manager that kills it on exit, so nothing keeps running after
+  a notebook or a test: ``with LiveViewer() as v: v.show(episode); display(v.cell())``.
+
+Hand-written here: only the scene layout and the recording window; geometry, animation
+encoding and the viewer are meshcat's.
+"""
+from __future__ import annotations
+
+import base64
+import html as html_lib
+import os
+import warnings
+
+import numpy as np
+
+__all__ = ["record_episode", "build_scene", "episode_html", "play_to_html", "notebook_html",
+           "RecordingWindow", "LiveViewer"]
+
+_FPS_STEPS = 2  # env steps per animation frame by default (0.032 s of flight)
+
+
+def _meshcat():
+    with warnings.catch_warnings():  # pyzmq's DeprecationWarning on import, harmless
+        warnings.simplefilter("ignore", DeprecationWarning)
+        import meshcat
+        import meshcat.animation
+        import meshcat.geometry
+    return meshcat
+
+
+def record_episode(method, scenario, seed: int = 0, stride: int = _FPS_STEPS, **overrides) -> dict:
+    """Run one episode of ``method`` (a registered name or a ``factory(world)``) and keep what is drawn.
+
+    Returns numpy arrays: ``pos`` (T, N, 3), ``quat`` (T, N, 4), ``alive`` (T, N),
+    ``reached`` (T, N), ``landmark_pos`` (N, 3), plus ``dt`` (seconds per frame),
+    ``scenario`` (the Scenario), ``crash_pos`` (N, 3, NaN if none) and ``covered`` at the end.
+    """
+    from ..envs import make
+    from ..envs.drone_model import CONTROL_DT
+    from ..methods import make_policy
+
+    if not isinstance(stride, int) or stride < 1:
+        raise ValueError(f"stride: expected a positive int, got {stride!r}")
+    world = make(scenario, num_envs=1, seed=seed, **overrides)
+    if world.scenario.kind != "drone":
+        raise ValueError(f"scenario {world.scenario.name!r}: expected a drone scenario for 3-D playback")
+    policy = make_policy(method, world) if isinstance(method, str) else method(world)
+    obs = world.reset(seed=seed)
+    policy.reset(obs)
+    frames = [obs]
+    crashed = np.zeros(world.num_agents, bool)
+    for t in range(world.horizon):
+        obs, info = world.step(policy.act(obs))
+        crashed |= (info["agent_collisions"][0] > 0).numpy()
+        if (t + 1) % stride == 0 or t + 1 == world.horizon:
+            frames.append(obs)
+    pick = lambda k: np.stack([f[k][0].detach().cpu().numpy() for f in frames])  # noqa: E731
+    pos, alive = pick("agent_pos").astype(np.float64), pick("alive")
+    crash_pos = np.where(crashed[:, None], pos[-1], np.nan)
+    return {"pos": pos, "quat": pick("agent_quat").astype(np.float64), "alive": alive,
+            "reached": pick("reached"), "covered": frames[-1]["covered"][0].numpy(), "crashed": crashed,
+            "landmark_pos": frames[0]["landmark_pos"][0].numpy().astype(np.float64), "crash_pos": crash_pos,
+            "dt": CONTROL_DT * stride, "scenario": world.scenario}
+
+
+def _pose(p, q=None) -> np.ndarray:
+    m = np.eye(4)
+    if q is not None:
+        import meshcat.transformations as tf
+        m = tf.quaternion_matrix(q)  # meshcat's transformations take (w, x, y, z), as MuJoCo
+    m[:3, 3] = p
+    return m
+
+
+def build_scene(vis, episode: dict) -> None:
+    """Draw ``episode`` (from :func:`record_episode`) into a meshcat ``Visualizer`` and animate it."""
+    mc = _meshcat()
+    g = mc.geometry
+    from ..envs.drone_model import ARM_LENGTH, HUMMINGBIRD, ROTOR_RADIUS, rotor_positions
+
+    sc, pos, quat = episode["scenario"], episode["pos"], episode["quat"]
+    T, N = pos.shape[:2]
+    colours = [int(255 * r) << 16 | int(255 * gg) << 8 | int(255 * b) for r, gg, b in _palette(N)]
+    vis.delete()
+    ws = sc.world_size
+    # camera behind the map's -y edge, looking at the centre; the "rotated" frame is y-up
+    vis["/Cameras/default"].set_transform(np.eye(4))
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 0.6 * ws, 0.8 * ws])
+    vis["/Axes"].set_property("visible", False)
+    vis["floor"].set_object(g.Box([ws, ws, 0.01]), g.MeshLambertMaterial(color=0xdddddd))
+    vis["floor"].set_transform(_pose([0, 0, -0.005]))
+    rot_x = np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1.0]])  # meshcat cylinders lie on y
+    for i in range(N):
+        d = vis["drones"][str(i)]
+        d["hub"].set_object(g.Box([0.1, 0.1, 0.05]), g.MeshLambertMaterial(color=colours[i]))
+        for k, ((x, y), s) in enumerate(zip(rotor_positions(), HUMMINGBIRD["directions"])):
+            arm = d["arm"][str(k)]
+            arm.set_object(g.Box([ARM_LENGTH, 0.02, 0.01]), g.MeshLambertMaterial(color=0x444444))
+            arm.set_transform(_pose([x / 2, y / 2, 0], _yaw_quat(np.arctan2(y, x))))
+            rotor = d["rotor"][str(k)]
+            rotor.set_object(g.Cylinder(0.008, ROTOR_RADIUS),
+                             g.MeshLambertMaterial(color=0xdd4433 if s < 0 else 0x3377dd, opacity=0.7,
+                                                   transparent=True))
+            rotor.set_transform(_pose([x, y, 0.02]) @ rot_x)
+        path = pos[:, i][episode["alive"][:, i] | _first_gone(episode["alive"][:, i])]
+        vis["trails"][str(i)].set_object(g.Line(g.PointsGeometry(path.T.astype(np.float32)),
+                                                g.LineBasicMaterial(color=colours[i])))
+        lm = vis["landmarks"][str(i)]
+        lm["ball"].set_object(g.Sphere(sc.landmark_radius), g.MeshLambertMaterial(color=0x228833))
+        lm["halo"].set_object(g.Sphere(0.22), g.MeshLambertMaterial(color=0x44cc44, opacity=0.3, transparent=True))
+        lm.set_transform(_pose(episode["landmark_pos"][i]))
+        vis["crashes"][str(i)].set_object(g.Sphere(0.3), g.MeshLambertMaterial(color=0xee2222, opacity=0.6,
+                                                                             transparent=True))
+        vis["crashes"][str(i)].set_transform(_pose(np.nan_to_num(episode["crash_pos"][i], nan=0.0)))
+    fps = 1.0 / episode["dt"]
+    anim = mc.animation.Animation(default_framerate=fps)
+    tiny, one = [1e-4] * 3, [1.0] * 3
+    for f in range(T):
+        with anim.at_frame(vis, f) as frame:
+            for i in range(N):
+                alive = bool(episode["alive"][f, i])
+                drone = frame["drones"][str(i)]
+                drone.set_transform(_pose(pos[f, i], quat[f, i]))
+                drone.set_property("scale", "vector3", one if alive else tiny)
+                frame["landmarks"][str(i)]["halo"].set_property(
+                    "scale", "vector3", one if episode["reached"][f, i] else tiny)
+                gone = episode["crashed"][i] and not alive
+                frame["crashes"][str(i)].set_property("scale", "vector3", one if gone else tiny)
+    vis.set_animation(anim, play=True, repetitions=1)
+
+
+def _first_gone(alive: np.ndarray) -> np.ndarray:
+    """The first frame after a drone left, so that its trail ends where it left."""
+    out = np.zeros_like(alive)
+    idx = np.flatnonzero(~alive)
+    if len(idx):
+        out[idx[0]] = True
+    return out
+
+
+def _yaw_quat(yaw: float) -> np.ndarray:
+    return np.array([np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)])
+
+
+def _palette(n: int) -> np.ndarray:
+    import matplotlib
+    return np.asarray(matplotlib.colormaps["tab20"](np.arange(n) % 20))[:, :3]
+
+
+class RecordingWindow:
+    """A stand-in for meshcat's ``ViewerWindow`` that stores the commands instead of sending them."""
+
+    def __init__(self):
+        self.commands: list[bytes] = []
+
+    def send(self, command) -> None:
+        import umsgpack
+        self.commands.append(umsgpack.packb(command.lower()))
+
+    def static_html(self) -> str:
+        """meshcat's static page: its viewer script, then every command as a base64 blob."""
+        mc = _meshcat()
+        root = os.path.join(os.path.dirname(mc.__file__), "viewer", "dist", "main.min.js")
+        with open(root, encoding="utf-8") as f:
+            viewer_js = f.read()
+        commands = "".join(
+            'fetch("data:application/octet-binary;base64,{}").then(r => r.arrayBuffer())'
+            ".then(b => viewer.handle_command_bytearray(new Uint8Array(b)));\n".format(
+                base64.b64encode(c).decode("ascii")) for c in self.commands)
+        return ("<!DOCTYPE html>\n<html><head><meta charset=utf-8><title>masp-lite drones</title>"
+                "<style>body{margin:0}#meshcat-pane{width:100vw;height:100vh;overflow:hidden}</style></head>"
+                f"<body><div id=\"meshcat-pane\"></div><script>{viewer_js}</script><script>"
+                "var viewer = new MeshCat.Viewer(document.getElementById('meshcat-pane'));\n"
+                f"{commands}</script></body></html>")
+
+
+def episode_html(episode: dict) -> str:
+    """The standalone page (str) of a recorded episode."""
+    mc = _meshcat()
+    window = RecordingWindow()
+    build_scene(mc.Visualizer(window=window), episode)
+    return window.static_html()
+
+
+def play_to_html(method, scenario, out, seed: int = 0, **overrides) -> str:
+    """Record one episode of ``method`` on ``scenario`` and write it as a standalone page ``out``."""
+    page = episode_html(record_episode(method, scenario, seed=seed, **overrides))
+    with open(out, "w", encoding="utf-8") as f:
+        f.write(page)
+    return str(out)
+
+
+def notebook_html(episode_or_page, height: int = 480):
+    """An ``IPython.display.HTML`` iframe showing the standalone page in a notebook cell."""
+    from IPython.display import HTML
+    page = episode_or_page if isinstance(episode_or_page, str) else episode_html(episode_or_page)
+    return HTML(f'<div><iframe srcdoc="{html_lib.escape(page, quote=True)}" '
+                f'style="width:100%;height:{int(height)}px;border:none"></iframe></div>')
+
+
+class LiveViewer:
+    """meshcat's server on 127.0.0.1 for live playback; stopped on ``close()`` or leaving ``with``."""
+
+    def __init__(self):
+        mc = _meshcat()
+        from meshcat.servers.zmqserver import start_zmq_server_as_subprocess
+        self._proc, zmq_url, self.web_url = start_zmq_server_as_subprocess(server_args=[])
+        if "127.0.0.1" not in self.web_url:
+            self.close()
+            raise RuntimeError(f"meshcat server not bound to 127.0.0.1: {self.web_url}")
+        self.vis = mc.Visualizer(zmq_url=zmq_url)
+
+    @property
+    def running(self) -> bool:
+        return self._proc is not None and self._proc.poll() is None
+
+    def show(self, episode: dict) -> None:
+        """Draw and animate a recorded episode in the live viewer."""
+        build_scene(self.vis, episode)
+
+    def cell(self, height: int = 480):
+        """The viewer as a notebook output (an iframe on the local server)."""
+        return self.vis.jupyter_cell(height=height)
+
+    def close(self) -> None:
+        vis = getattr(self, "vis", None)
+        if vis is not None:
+            vis.window.zmq_socket.close(linger=0)
+            self.vis = None
+        if getattr(self, "_proc", None) is not None:
+            self._proc.kill()
+            self._proc.wait()
+            self._proc = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        self.close()
