@@ -28,11 +28,18 @@ def test_draw_frame_draws_every_body_to_scale():
     w = make("mpe-5", num_envs=1, seed=0, horizon=3)
     frames = record(w, make_policy("h-greedy", w), seed=0)
     fig, ax = plt.subplots()
-    draw_frame(ax, frames[-1])
-    circles = [p for p in ax.patches if isinstance(p, matplotlib.patches.Circle)]
-    assert len(circles) == 5 + 5 + 5  # agents, landmarks, obstacles
-    assert sorted({round(c.radius, 3) for c in circles}) == [0.05, 0.1]
+    scene = draw_frame(ax, frames[-1])
+    for coll, key, radius in ((scene.agents, "agent_pos", 0.1), (scene.landmarks, "landmark_pos", 0.05),
+                              (scene.obstacles, "obstacle_pos", 0.1)):
+        np.testing.assert_allclose(coll.get_offsets(), frames[-1][key])
+        np.testing.assert_allclose(coll._widths, radius)  # half-widths in data units: to scale
+    covered = frames[-1]["covered"]
+    green = matplotlib.colors.to_rgba("#31a354")
+    faces = scene.landmarks.get_facecolors()
+    assert [tuple(f) == green for f in faces] == covered.tolist()
     assert ax.get_title().startswith("t = 3/3")
+    scene.update(frames[0])
+    assert ax.get_title().startswith("t = 0/3")
     plt.close(fig)
 
 
@@ -41,7 +48,8 @@ def test_play_writes_a_small_gif(tmp_path, capsys):
     rc = main(["play", "--method", "h-greedy", "--scenario", "mpe-5", "--out", str(out),
                "--set", "horizon=4", "--seed", "3"])
     assert rc == 0 and out.stat().st_size > 0
-    assert Image.open(out).n_frames == 5
+    with Image.open(out) as im:
+        assert im.n_frames == 5
     assert "wrote" in capsys.readouterr().out
 
 
