@@ -7,9 +7,9 @@ import pytest
 import torch
 
 from masp_lite.envs import make
-from masp_lite.envs.drone_model import ARM_LENGTH, HUMMINGBIRD, MAX_THRUST, build_model
+from masp_lite.envs.drone_model import ARM_LENGTH, HUMMINGBIRD, MAX_THRUST, build_model, rotor_positions
 from masp_lite.planners.drone_control import (MIXER, DroneHungarianGreedy, LeeController, allocation_matrix,
-                                              quat_to_matrix, thrusts_to_commands)
+                                              mixing_matrix, position_loop, quat_to_matrix, thrusts_to_commands)
 
 
 def test_mixing_matrix_round_trip_and_layout():
@@ -20,6 +20,12 @@ def test_mixing_matrix_round_trip_and_layout():
     assert np.allclose(A @ f, wrench)
     # "+" layout: rotor 0 on +x pitches the nose down (negative pitch moment), rotor 1 on +y rolls
     assert A[2, 0] == pytest.approx(-ARM_LENGTH) and A[1, 1] == pytest.approx(ARM_LENGTH)
+    assert np.allclose(A[1], rotor_positions()[:, 1]) and np.allclose(A[2], -rotor_positions()[:, 0])
+    x_layout = dict(arm_length=0.2, rotor_angles=np.deg2rad([45, 135, 225, 315]), directions=[1, -1, 1, -1],
+                    yaw_ratio=0.02)
+    assert np.allclose(mixing_matrix(**x_layout) @ allocation_matrix(**x_layout), np.eye(4))
+    with pytest.raises(ValueError, match="4 values"):
+        allocation_matrix(rotor_angles=[0, 1, 2])
 
 
 def test_allocation_matches_mujoco_actuators():
@@ -84,6 +90,15 @@ def test_commands_and_options():
     assert thrusts_to_commands(torch.tensor([0.0, MAX_THRUST, 2 * MAX_THRUST])).tolist() == [-1.0, 1.0, 1.0]
     hover = HUMMINGBIRD["mass"] * 9.81 / 4
     assert thrusts_to_commands(torch.tensor(hover)).item() == pytest.approx(2 * hover / MAX_THRUST - 1)
+    state = [torch.randn(2, 3, k, generator=torch.Generator().manual_seed(k)) for k in (3, 3, 4, 3)]
+    calls = []
+
+    def spy(*args):
+        calls.append(1)
+        return position_loop(*args)
+    assert torch.equal(LeeController(position_loop=spy)(*state), LeeController()(*state)) and calls
+    with pytest.raises(ValueError, match="position_loop"):
+        LeeController(position_loop=3)
     with pytest.raises(ValueError, match="kx"):
         LeeController(kx=-1)
     with pytest.raises(ValueError, match="max_speed"):

@@ -34,22 +34,38 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..envs.drone_model import GRAVITY, HUMMINGBIRD, MAX_THRUST, rotor_positions
+from ..envs.drone_model import GRAVITY, HUMMINGBIRD, MAX_THRUST
 
-__all__ = ["allocation_matrix", "MIXER", "quat_to_matrix", "position_loop", "LeeController",
+__all__ = ["allocation_matrix", "mixing_matrix", "MIXER", "quat_to_matrix", "position_loop", "LeeController",
            "thrusts_to_commands", "DroneHungarianGreedy"]
 
 
-def allocation_matrix() -> np.ndarray:
-    """(4, 4) map from rotor thrusts to (collective thrust, roll, pitch, yaw moment)."""
-    xy = rotor_positions()
-    d = np.asarray(HUMMINGBIRD["directions"])
-    yaw = HUMMINGBIRD["moment_constant"] / HUMMINGBIRD["force_constant"]
-    return np.stack([np.ones(4), xy[:, 1], -xy[:, 0], -d * yaw])
+def allocation_matrix(arm_length: float = HUMMINGBIRD["arm_length"],
+                      rotor_angles=HUMMINGBIRD["rotor_angles"], directions=HUMMINGBIRD["directions"],
+                      yaw_ratio: float = HUMMINGBIRD["moment_constant"] / HUMMINGBIRD["force_constant"]
+                      ) -> np.ndarray:
+    """(4, 4) map from rotor thrusts to (collective thrust, roll, pitch, yaw moment).
+
+    Rotor ``i`` sits at ``arm_length · (cos a_i, sin a_i)`` and spins in direction ``d_i``;
+    the defaults are the Hummingbird's "+" layout.
+    """
+    a = np.asarray(rotor_angles, dtype=np.float64)
+    d = np.asarray(directions, dtype=np.float64)
+    if a.shape != (4,) or d.shape != (4,):
+        raise ValueError(f"rotor_angles and directions: expected 4 values each, got {a.shape} and {d.shape}")
+    x, y = arm_length * np.cos(a), arm_length * np.sin(a)
+    return np.stack([np.ones(4), y, -x, -d * yaw_ratio])
 
 
-MIXER = np.linalg.inv(allocation_matrix())
-"""(4, 4) motor mixing: rotor thrusts = MIXER @ (thrust, M_x, M_y, M_z)."""
+def mixing_matrix(arm_length: float = HUMMINGBIRD["arm_length"], rotor_angles=HUMMINGBIRD["rotor_angles"],
+                  directions=HUMMINGBIRD["directions"],
+                  yaw_ratio: float = HUMMINGBIRD["moment_constant"] / HUMMINGBIRD["force_constant"]) -> np.ndarray:
+    """(4, 4) motor mixing, the inverse of :func:`allocation_matrix`: wrench → rotor thrusts."""
+    return np.linalg.inv(allocation_matrix(arm_length, rotor_angles, directions, yaw_ratio))
+
+
+MIXER = mixing_matrix()
+"""(4, 4) motor mixing of the Hummingbird: rotor thrusts = MIXER @ (thrust, M_x, M_y, M_z)."""
 
 
 def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
@@ -88,11 +104,16 @@ class LeeController:
     Call it with the world's observation tensors: ``pos``, ``vel`` (world frame),
     ``quat`` (w x y z), ``angvel`` (body frame) and optional ``target_pos`` (default: hold
     the current position), ``target_vel``, ``target_acc`` (default 0), ``target_yaw``
-    (default 0 rad).
+    (default 0 rad). ``position_loop`` may replace :func:`position_loop` (same signature),
+    e.g. by a learner's own version in the course.
     """
 
     def __init__(self, kx: float = 4.0, kv: float = 2.2, k_att=(0.7, 0.7, 0.035),
-                 k_rate=(0.1, 0.1, 0.025), max_speed: float | None = None, max_tilt_acc: float = 8.0):
+                 k_rate=(0.1, 0.1, 0.025), max_speed: float | None = None, max_tilt_acc: float = 8.0,
+                 position_loop=None):
+        self.position_loop = globals()["position_loop"] if position_loop is None else position_loop
+        if not callable(self.position_loop):
+            raise ValueError(f"position_loop: expected a function, got {type(position_loop).__name__}")
         for name, v in (("kx", kx), ("kv", kv), ("max_tilt_acc", max_tilt_acc)):
             if not (isinstance(v, (int, float)) and v > 0):
                 raise ValueError(f"{name}: expected a positive number, got {v!r}")
@@ -112,7 +133,7 @@ class LeeController:
         tp = pos if target_pos is None else target_pos.to(torch.float64)
         tv = zero if target_vel is None else target_vel.to(torch.float64)
         ta = zero if target_acc is None else target_acc.to(torch.float64)
-        acc = position_loop(pos, vel, tp, tv, ta, self.kx, self.kv, self.max_speed)
+        acc = self.position_loop(pos, vel, tp, tv, ta, self.kx, self.kv, self.max_speed)
         # limit the horizontal part (the tilt), never the vertical one
         h = acc[..., :2].norm(dim=-1, keepdim=True).clamp_min(1e-9)
         acc = torch.cat([acc[..., :2] * (self.max_tilt_acc / h).clamp(max=1.0), acc[..., 2:].clamp_min(0.5)], -1)
