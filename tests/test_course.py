@@ -1,4 +1,7 @@
 """Course machinery: exercise checks, fast mode, skeleton of every chapter, learner notebooks in sync."""
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import nbformat
@@ -179,8 +182,42 @@ def test_chapter_skeleton(path):
     assert authoring.problems(nb) == []
 
 
+def test_generate_check_reports_stale_notebooks(tmp_path, capsys):
+    (tmp_path / "solutions").mkdir()
+    nbformat.write(_toy_notebook(), tmp_path / "solutions" / "99_toy.ipynb")
+    args = ["--solutions", str(tmp_path / "solutions"), "--notebooks", str(tmp_path / "notebooks")]
+    assert generate.main(args + ["--check"]) == 1
+    assert "stale: 99_toy.ipynb" in capsys.readouterr().out
+    assert generate.main(args) == 0 and generate.main(args + ["--check"]) == 0
+    assert generate.main(["--solutions", str(tmp_path / "nothing")]) == 2
+
+
 def test_learner_notebooks_are_in_sync_with_solutions():
     assert SOLUTIONS, "expected instructor notebooks in solutions/"
     assert generate.stale() == [], "run: python -m masp_lite.course.generate"
     shipped = sorted(p.name for p in (ROOT / "notebooks").glob("*.ipynb"))
     assert shipped == [p.name for p in SOLUTIONS], "every learner notebook needs an instructor version"
+
+
+def test_nbgrader_generate_assignment_accepts_solutions_and_agrees(tmp_path):
+    """nbgrader's own generate_assignment takes the instructor notebooks and releases exactly
+    our learner notebooks, apart from the ``raises-exception`` tag we add to graded cells."""
+    source = tmp_path / "source" / "course"
+    source.mkdir(parents=True)
+    for path in SOLUTIONS:
+        (source / path.name).write_bytes(path.read_bytes())
+    (tmp_path / "nbgrader_config.py").write_text(
+        f"c = get_config()\nc.CourseDirectory.root = {str(tmp_path)!r}\nc.CourseDirectory.course_id = 'masp'\n")
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}")
+    proc = subprocess.run([sys.executable, "-m", "nbgrader", "generate_assignment", "course", "--force"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    for path in SOLUTIONS:
+        released = nbformat.read(tmp_path / "release" / "course" / path.name, as_version=4)
+        ours = nbformat.read(ROOT / "notebooks" / path.name, as_version=4)
+        assert [c.source for c in released.cells] == [c.source for c in ours.cells]
+        for r, o in zip(released.cells, ours.cells):
+            meta = dict(o.metadata)
+            if "nbgrader" in meta and meta["nbgrader"].get("grade"):
+                assert meta.pop("tags") == ["raises-exception"]
+            assert dict(r.metadata) == meta
