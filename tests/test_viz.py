@@ -63,3 +63,21 @@ def test_save_mp4_and_bad_names(tmp_path, capsys):
     assert "expected a .gif, .mp4 or .html" in capsys.readouterr().err
     assert main(["play", "--method", "random", "--scenario", "drone-5", "--out", str(tmp_path / "x.gif")]) == 2
     assert "drone scenario" in capsys.readouterr().err
+
+
+def test_html_and_drone_playback_go_to_the_3d_exporter(tmp_path, monkeypatch):
+    import sys
+    import types
+
+    calls = []
+    fake = types.ModuleType("masp_lite.viz.meshcat3d")
+    fake.play_to_html = lambda method, scenario, out, seed=0, **overrides: calls.append(
+        (method, scenario, out, seed, overrides))
+    monkeypatch.setitem(sys.modules, "masp_lite.viz.meshcat3d", fake)
+    out = tmp_path / "ep.html"
+    assert main(["play", "--method", "h-greedy", "--scenario", "drone-5", "--out", str(out),
+                 "--seed", "2", "--set", "horizon=30"]) == 0
+    assert calls == [("h-greedy", "drone-5", str(out), 2, {"horizon": 30})]
+    # method options cannot reach the exporter: one clear error instead of a silent drop
+    assert main(["play", "--method", "random", "--scenario", "mpe-5", "--out", str(out),
+                 "--set", "seed=1"]) == 2
