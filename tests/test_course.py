@@ -8,6 +8,7 @@ import nbformat
 import numpy as np
 import pytest
 import torch
+from IPython.core.inputtransformer2 import TransformerManager
 
 import masp_lite.course as course
 from masp_lite.course import authoring, generate
@@ -180,6 +181,19 @@ def test_learner_version_has_stubs_tags_and_no_solutions(tmp_path):
 def test_chapter_skeleton(path):
     nb = nbformat.read(path, as_version=4)
     assert authoring.problems(nb) == []
+
+
+@pytest.mark.parametrize("path", SOLUTIONS, ids=[p.stem for p in SOLUTIONS])
+def test_learner_stubs_are_valid_python_without_solutions(path):
+    learner = nbformat.read(ROOT / "notebooks" / path.name, as_version=4)
+    solution_cells = [c for c in learner.cells if c.metadata.get("nbgrader", {}).get("solution")]
+    assert solution_cells
+    for cell in learner.cells:
+        assert "BEGIN SOLUTION" not in cell.source and "END SOLUTION" not in cell.source
+        if cell.cell_type == "code":
+            python = TransformerManager().transform_cell(cell.source)  # IPython magics -> Python
+            compile(python, f"{path.name} cell {cell.id}", "exec")
+    assert all("raise NotImplementedError()" in c.source for c in solution_cells)
 
 
 def test_generate_check_reports_stale_notebooks(tmp_path, capsys):
