@@ -80,3 +80,17 @@ def test_h_greedy_hands_drone_worlds_to_the_drone_controller():
     drone_control = pytest.importorskip("masp_lite.planners.drone_control")
     w = make("drone-5", num_envs=1, seed=0)
     assert isinstance(make_policy("h-greedy", w), drone_control.DroneHungarianGreedy)
+
+
+def test_h_greedy_reassigns_as_soon_as_the_team_shrinks():
+    w = make("mpe-20to10", num_envs=3, seed=0, change_step=4)
+    p = make_policy("h-greedy", w, global_step=3)
+    obs = w.reset(seed=0)
+    p.reset(obs)
+    for _ in range(4):
+        obs, _ = w.step(p.act(obs))
+    before = p.assignment.clone()  # made at t = 3 for the full team
+    assert (before[~obs["alive"]] >= 0).any()  # some dropped agents had goals
+    p.act(obs)  # t = 4 is no global step, but the team has just changed
+    assert torch.equal(p.assignment, p.assign(obs))
+    assert (p.assignment[~obs["alive"]] == -1).all()

@@ -91,7 +91,9 @@ class HungarianGreedy:
     (a square problem); varying teams — over the landmarks not yet reached, since the
     success rate there counts landmarks ever reached (rectangular: with more unreached
     landmarks than agents the least-cost subset is chosen; with fewer, the extra agents
-    get no goal). The current assignment is kept in ``self.assignment`` (B, N), ``-1`` for
+    get no goal). A world whose team has just shrunk is reassigned at once rather than at
+    its next global step, so the survivors take over the dropped agents' landmarks without
+    delay. The current assignment is kept in ``self.assignment`` (B, N), ``-1`` for
     none, for playback.
 
     Motion (every step, vectorized over worlds and agents): let ``d`` be the distance to
@@ -125,9 +127,11 @@ class HungarianGreedy:
         self.global_step = global_step
         self.varying = bool(world.scenario.varying)
         self.assignment = None
+        self._alive = None
 
     def reset(self, obs) -> None:
         self.assignment = None
+        self._alive = None
 
     def assign(self, obs) -> torch.Tensor:
         """Hungarian assignment for the current observation (see the class docstring)."""
@@ -137,6 +141,9 @@ class HungarianGreedy:
     def act(self, obs) -> torch.Tensor:
         t = obs["t"]
         due = (t % self.global_step == 0)
+        if self._alive is not None:  # the team just changed: reassign now, not at the next global step
+            due = due | (obs["alive"] != self._alive).any(dim=1)
+        self._alive = obs["alive"].clone()
         if self.assignment is None:
             self.assignment = self.assign(obs)
         elif bool(due.any()):
