@@ -3,8 +3,10 @@
 ``solutions/NN_name.ipynb`` (instructor: full solutions between ``### BEGIN SOLUTION`` and
 ``### END SOLUTION``, graded check cells) becomes ``notebooks/NN_name.ipynb`` (learner:
 stubs that raise ``NotImplementedError``) through the same preprocessors, in the same
-order, as ``nbgrader generate_assignment`` — minus the ones that need nbgrader's course
-database or header files:
+order, as ``nbgrader generate_assignment`` — minus ``IncludeHeaderFooter`` and
+``InstantiateTests`` (header files and ``### AUTOTEST`` templates, which the course does
+not use) and ``SaveCells`` (it writes nbgrader's database; a first ``ComputeChecksums``
+only fed it):
 
 ``LockCells`` → ``ClearSolutions`` → ``ClearOutput`` → ``CheckCellMetadata`` →
 ``ClearHiddenTests`` → ``ClearMarkScheme`` → ``ComputeChecksums`` → ``CheckCellMetadata``
@@ -20,7 +22,8 @@ Regenerate every learner notebook (run from the repository root)::
     python -m masp_lite.course.generate --check    # exit 1 if any shipped one is stale
 
 The test suite regenerates into a temporary folder and compares, so the two versions
-cannot drift apart.
+cannot drift apart; it also runs the real ``nbgrader generate_assignment`` on the
+instructor notebooks and checks that its release equals ours but for the tag.
 """
 from __future__ import annotations
 
