@@ -264,9 +264,11 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
         if "checkpoint" not in named and not var_kw:
             raise ValueError(f"method {method!r} takes no checkpoint; expected a learned method")
         options["checkpoint"] = str(checkpoint)
+    seeds = list(seeds) if isinstance(seeds, (list, tuple, range)) else seeds
+    if not isinstance(seeds, list) or not seeds or not all(isinstance(s, (int, np.integer)) and
+                                                          not isinstance(s, bool) for s in seeds):
+        raise ValueError(f"seeds: expected a non-empty list of ints, got {seeds!r}")
     seeds = [int(s) for s in seeds]
-    if not seeds:
-        raise ValueError("seeds: expected at least one seed")
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes: expected a positive int, got {episodes!r}")
     B = min(episodes, num_envs or MAX_ENVS)

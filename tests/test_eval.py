@@ -116,5 +116,9 @@ def test_evaluate_bad_input():
         evaluate("nope", "mpe-5", episodes=1)
     with pytest.raises(ValueError, match="unknown option"):
         evaluate("random", "mpe-5", episodes=1, method_options={"speed": 2})
+    with pytest.raises(ValueError, match="seeds"):
+        evaluate("random", "mpe-5", episodes=1, seeds=[])
+    with pytest.raises(ValueError, match="seeds"):
+        evaluate("random", "mpe-5", episodes=1, seeds=0)
     with pytest.raises(ValueError, match="checkpoint"):
         evaluate("random", "mpe-5", episodes=1, checkpoint="x.pt")
