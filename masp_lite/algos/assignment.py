@@ -73,7 +73,12 @@ def _check(agent_pos, goal_pos, agent_mask, goal_mask):
 
 
 def distance_matrix(agent_pos: np.ndarray, goal_pos: np.ndarray) -> np.ndarray:
-    """Euclidean distances (B, N, L) between every agent and every goal of each world."""
+    """Euclidean distances (B, N, L) between every agent and every goal of each world.
+
+    This is the cost matrix the Hungarian algorithm minimises, for the whole batch at
+    once (numpy arrays in and out). :func:`hungarian` itself computes it world by world
+    with ``scipy.spatial.distance.cdist`` on the masked points only, which is faster.
+    """
     return np.sqrt(((agent_pos[:, :, None, :] - goal_pos[:, None, :, :]) ** 2).sum(-1))
 
 
