@@ -259,3 +259,24 @@ def test_policies_reject_unknown_options_and_drone_worlds():
         HOrca(w, horizon_typo=3)
     with pytest.raises(ValueError, match="unknown option"):
         HVoronoi(w, samples=3)
+
+
+def test_goals_next_to_obstacles_move_clear_but_stay_in_reach():
+    w = make("mpe-5", num_envs=1, seed=0)
+    pol = HOrca(w)
+    obstacles = np.array([[[0.0, 0.0], [1.0, 1.0]]])
+    goals = np.array([[[0.17, 0.0], [0.0, 0.5], [1.0, 1.3]]])
+    out = pol.standoff(goals, obstacles)
+    assert np.linalg.norm(out[0, 0]) >= w.scenario.agent_radius + w.scenario.obstacle_radius
+    assert np.linalg.norm(out[0, 0] - goals[0, 0]) < w.scenario.reach_distance
+    assert np.allclose(out[0, 1:], goals[0, 1:])                   # far enough already
+
+
+def test_bench_planners_times_act_and_splits_collisions():
+    from masp_lite.bench.planners import collision_split, step_times
+    ms = step_times("h-orca", "mpe-5", episodes=1)
+    assert ms.shape == (18,) and (ms > 0).all()
+    s = collision_split("h-greedy", "mpe-5", episodes=8)
+    assert np.isclose(s["cr"], s["agent_agent"] + s["agent_obstacle"]) and s["cr"] > 0
+    with pytest.raises(ValueError, match="episodes"):
+        step_times("h-orca", "mpe-5", episodes=0)

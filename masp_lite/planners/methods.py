@@ -83,7 +83,27 @@ class HungarianPlanner:
         pos, lms = _np(obs["agent_pos"]).astype(np.float64), _np(obs["landmark_pos"]).astype(np.float64)
         idx = self.goal_index
         g = np.take_along_axis(lms, np.clip(idx, 0, None)[..., None], 1)
-        return np.where((idx >= 0)[..., None], g, pos)
+        return np.where((idx >= 0)[..., None], self.standoff(g, _np(obs["obstacle_pos"])), pos)
+
+    def standoff(self, goals, obstacles, margin: float = 0.06) -> np.ndarray:
+        """Move goal points that sit too close to an obstacle just clear of it.
+
+        A landmark may lie as close as ``r_landmark + r_obstacle`` to an obstacle, where an
+        agent on it would touch the obstacle. The target point is pushed straight away from
+        the nearest such obstacle to ``r_agent + r_obstacle + margin`` — at most 0.1 m for the
+        paper's radii, well inside the ``r_agent + r_landmark`` that counts as reached.
+        """
+        sc = self.scenario
+        if obstacles.shape[1] == 0:
+            return goals
+        off = goals[:, :, None] - obstacles[:, None].astype(np.float64)          # (B, N, K, 2)
+        dist = np.linalg.norm(off, axis=-1)
+        k = dist.argmin(-1)[..., None]
+        d = np.take_along_axis(dist, k, -1)[..., 0]
+        need = sc.agent_radius + sc.obstacle_radius + margin
+        push = (d < need) & (need - d < sc.reach_distance - 0.01)
+        unit = np.take_along_axis(off, k[..., None], 2)[:, :, 0] / np.maximum(d, 1e-9)[..., None]
+        return np.where(push[..., None], goals + unit * (need - d)[..., None], goals)
 
     def act(self, obs) -> torch.Tensor:
         t = _np(obs["t"])
@@ -178,7 +198,7 @@ class HRRTStar(_PathPlanner):
     """(H)RRT*: per-agent RRT* paths around obstacles and agents, re-planned every global
     step or when the next segment is blocked; a better old path is kept (paths are reused)."""
 
-    OPTIONS = dict(samples=60, step_size=1.0, rewire_radius=1.5, goal_bias=0.2, margin=0.05,
+    OPTIONS = dict(samples=60, step_size=1.0, rewire_radius=1.5, goal_bias=0.2, margin=0.1,
                    max_speed=MAX_SPEED)
 
     def reset_planner(self, obs):
@@ -194,14 +214,15 @@ class HRRTStar(_PathPlanner):
         else:
             goal_moved = np.abs(self.paths[:, :, -1] - goals).sum(-1) > 1e-9
             nxt = np.take_along_axis(self.paths, self.index[..., None, None].repeat(2, -1), 2)[:, :, 0]
-            blocked = segments_blocked(pos, nxt, centres, radii, mask, self_index=self._self_index(B, N))
+            blocked = segments_blocked(pos, nxt, centres, radii, mask, self_index=self._self_index(B, N),
+                                       goal=goals, margin=self.opt["margin"])
             replan = due[:, None] | goal_moved | blocked
         if replan.any():
             o = self.opt
             new = plan_rrt_star(pos, goals, centres, radii, mask, replan, self._rng,
                                 self_index=self._self_index(B, N), bounds=self.scenario.world_size / 2,
                                 samples=int(o["samples"]), step_size=o["step_size"],
-                                rewire_radius=o["rewire_radius"], goal_bias=o["goal_bias"],
+                                rewire_radius=o["rewire_radius"], goal_bias=o["goal_bias"], margin=o["margin"],
                                 previous=self._remaining(pos, goals))
             self.set_paths(new, replan)
         return self.track(obs)

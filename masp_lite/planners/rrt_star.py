@@ -17,9 +17,9 @@ towards the optimum as samples grow. Here, per agent, for a given start and goal
    **shortcut** greedily (from each waypoint jump to the furthest one in line of sight).
 
 Obstacles are circles (the world's obstacles and the other agents at planning time,
-already inflated by the caller). A circle that contains the start or the goal is ignored
-for that agent — it cannot be planned around (a neighbour standing on the landmark moves
-on its own). Each tree considers only its ``max_circles`` circles nearest to the
+already inflated by the caller by a safety margin). A circle whose margin holds the start
+or goal counts with its bare radius, and one the agent already touches, or that covers
+its goal, is ignored (:func:`agent_circles`; a neighbour on the landmark moves on its own). Each tree considers only its ``max_circles`` circles nearest to the
 start–goal segment.
 
 Why hand-written: no maintained Python RRT* batches many small trees; the loops below run
@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["segment_hits", "segments_blocked", "rewire", "rrt_star", "shortcut", "plan_rrt_star",
+__all__ = ["segment_hits", "agent_circles", "segments_blocked", "rewire", "rrt_star", "shortcut", "plan_rrt_star",
            "path_length"]
 
 
@@ -48,20 +48,31 @@ def segment_hits(p0, p1, centres, radii):
     return ((closest - centres) ** 2).sum(-1) < np.asarray(radii) ** 2
 
 
-def _agent_mask(start, goal, centres, radii, mask, self_index):
-    """Circles each agent must avoid: (B, N, C) — valid, not itself, not around start or goal."""
-    m = np.broadcast_to(mask[:, None, :], start.shape[:2] + mask.shape[1:]).copy()
-    inside = lambda p: ((centres[:, None] - p[:, :, None]) ** 2).sum(-1) < radii**2  # noqa: E731
-    m &= ~inside(start) & ~inside(goal)
+def agent_circles(start, goal, centres, radii, mask, self_index=None, margin=0.05):
+    """Per-agent circles to avoid: radii (B, N, C) and mask (B, N, C).
+
+    ``radii`` (C,) are inflated by ``margin``. A circle whose inflated disc holds the agent's
+    start or goal shrinks to just inside that point, but never below its bare radius
+    (``radii - margin``): the agent may leave or approach it, not run into it. One whose
+    bare disc holds them is dropped (already in contact, or a goal under a neighbour). The
+    agent's own circle (``self_index``) is dropped.
+    """
+    def dist_sq(p):
+        return ((centres[:, None] - p[:, :, None]) ** 2).sum(-1)
+
+    near = np.minimum(dist_sq(start), dist_sq(goal))
+    # near a circle: shrink it to just inside the agent's distance (never below the bare radius)
+    r = np.clip(np.sqrt(near) - 0.005, radii - margin, radii)
+    m = np.broadcast_to(mask[:, None, :], r.shape).copy() & (near >= (radii - margin) ** 2)
     if self_index is not None:
         np.put_along_axis(m, np.asarray(self_index)[..., None], False, -1)
-    return m
+    return r, m
 
 
-def segments_blocked(start, end, centres, radii, mask, self_index=None, goal=None):
+def segments_blocked(start, end, centres, radii, mask, self_index=None, goal=None, margin=0.05):
     """(B, N) bool: the segment ``start → end`` of each agent hits a circle it must avoid."""
-    m = _agent_mask(start, end if goal is None else goal, centres, radii, mask, self_index)
-    return (segment_hits(start, end, centres[:, None], radii) & m).any(-1)
+    r, m = agent_circles(start, end if goal is None else goal, centres, radii, mask, self_index, margin)
+    return (segment_hits(start, end, centres[:, None], r) & m).any(-1)
 
 
 def path_length(points):
@@ -200,10 +211,11 @@ def shortcut(path, centres, radii, cmask):
 
 def plan_rrt_star(start, goal, centres, radii, mask, replan, rng, *, self_index=None, bounds=None,
                   samples=60, step_size=1.0, rewire_radius=1.5, goal_bias=0.2, box_pad=2.0, max_circles=24,
-                  previous=None):
+                  margin=0.05, previous=None):
     """Waypoint paths (B, N, P, 2) for the agents in ``replan`` (B, N); others get their goal.
 
-    ``start``, ``goal`` (B, N, 2); circles ``centres`` (B, C, 2) with ``radii`` (C,) and
+    ``start``, ``goal`` (B, N, 2); circles ``centres`` (B, C, 2) with ``radii`` (C,) (inflated
+    by ``margin``, see :func:`agent_circles`) and
     ``mask`` (B, C); ``self_index`` (B, N) the circle of each agent itself; ``bounds`` the
     half side of the map (samples stay inside). ``previous`` (B, N, P', 2), the rest of
     the current paths from the current position: a replanned agent keeps it when it is
@@ -211,8 +223,9 @@ def plan_rrt_star(start, goal, centres, radii, mask, replan, rng, *, self_index=
     """
     B, N, _ = start.shape
     out = [goal[:, :, None]]
-    m = _agent_mask(start, goal, centres, radii, mask, self_index) & replan[..., None]
-    direct = ~(segment_hits(start, goal, centres[:, None], radii) & m).any(-1)
+    ra, m = agent_circles(start, goal, centres, radii, mask, self_index, margin)
+    m &= replan[..., None]
+    direct = ~(segment_hits(start, goal, centres[:, None], ra) & m).any(-1)
     hard = np.argwhere(replan & ~direct)                                # (A, 2) of (b, n)
     P = 1
     if len(hard):
@@ -222,11 +235,11 @@ def plan_rrt_star(start, goal, centres, radii, mask, replan, rng, *, self_index=
         seg = g - s
         t = np.clip(((centres[b] - s[:, None]) * seg[:, None]).sum(-1) / np.maximum((seg**2).sum(-1), 1e-12)[:, None],
                     0, 1)
-        gap = np.linalg.norm(s[:, None] + t[..., None] * seg[:, None] - centres[b], axis=-1) - radii
+        gap = np.linalg.norm(s[:, None] + t[..., None] * seg[:, None] - centres[b], axis=-1) - ra[b, n]
         gap[~m[b, n]] = np.inf
         c = min(max_circles, gap.shape[1])
         pick = np.argsort(gap, axis=1)[:, :c]
-        cen, rad = np.take_along_axis(centres[b], pick[..., None], 1), radii[pick]
+        cen, rad = np.take_along_axis(centres[b], pick[..., None], 1), np.take_along_axis(ra[b, n], pick, 1)
         cm = np.isfinite(np.take_along_axis(gap, pick, 1))
         lo, hi = np.minimum(s, g) - box_pad, np.maximum(s, g) + box_pad
         if bounds is not None:
@@ -243,7 +256,7 @@ def plan_rrt_star(start, goal, centres, radii, mask, replan, rng, *, self_index=
         prev_len = path_length(np.concatenate([start[:, :, None], previous], 2))
         new_len = path_length(np.concatenate([start[:, :, None], new], 2))
         seg_a = np.concatenate([start[:, :, None], previous[:, :, :-1]], 2)
-        hit = segment_hits(seg_a, previous, centres[:, None, None], radii) & m[:, :, None]
+        hit = segment_hits(seg_a, previous, centres[:, None, None], ra[:, :, None]) & m[:, :, None]
         complete = np.abs(new[:, :, -1] - goal).sum(-1) < 1e-9
         keep = replan & ~hit.any((-1, -2)) & ((prev_len <= new_len + 1e-9) | ~complete) & ~direct
         if keep.any():

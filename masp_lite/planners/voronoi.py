@@ -30,7 +30,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import Voronoi
 
-from .rrt_star import segment_hits, shortcut
+from .rrt_star import agent_circles, segment_hits, shortcut
 
 __all__ = ["safe_edges", "voronoi_paths", "plan_voronoi", "boundary_ring"]
 
@@ -84,18 +84,18 @@ def voronoi_paths(start, goal, obstacles, *, agent_radius, obstacle_radius, half
     # circles to avoid when joining starts/goals to the roadmap: obstacles and other agents
     circ = np.concatenate([obstacles, start])
     circ_r = np.concatenate([np.full(K, obstacle_radius), np.full(n, agent_radius)]) + agent_radius + margin
-    rows, cols, w = [edges[:, 0], edges[:, 1]], [edges[:, 1], edges[:, 0]], []
+    rows, cols = [edges[:, 0], edges[:, 1]], [edges[:, 1], edges[:, 0]]
     w = [np.linalg.norm(vor.vertices[edges[:, 0]] - vor.vertices[edges[:, 1]], axis=1)] * 2
     owner = np.argmin(((goal[:, None] - pts[None, : n + K]) ** 2).sum(-1), 1)    # cell holding each goal
+    radius, avoid = _circles(start, goal, circ, circ_r, K, margin)
     for i in range(n):
-        avoid = _avoid(i, start[i], goal[i], circ, circ_r, K)
         for node, other, cell, outgoing in ((V + i, start[i], i, True), (V + n + i, goal[i], owner[i], False)):
             region = [r for r in vor.regions[vor.point_region[cell]] if r >= 0]
             if not region:
                 continue
             vs = np.asarray(region)
-            ok = ~(segment_hits(np.broadcast_to(other, (len(vs), 2)), vor.vertices[vs], circ, circ_r)
-                   & avoid).any(-1)
+            ok = ~(segment_hits(np.broadcast_to(other, (len(vs), 2)), vor.vertices[vs], circ, radius[i])
+                   & avoid[i]).any(-1)
             vs = vs[ok]
             d = np.linalg.norm(vor.vertices[vs] - other, axis=1)
             rows.append(np.full(len(vs), node) if outgoing else vs)
@@ -118,13 +118,12 @@ def voronoi_paths(start, goal, obstacles, *, agent_radius, obstacle_radius, half
     return paths
 
 
-def _avoid(i, s, g, circ, circ_r, K):
-    """Mask of circles agent ``i`` must avoid: not itself, not any circle holding its start/goal."""
-    m = np.ones(len(circ), bool)
-    m[K + i] = False
-    m &= ((circ - s) ** 2).sum(-1) >= circ_r**2
-    m &= ((circ - g) ** 2).sum(-1) >= circ_r**2
-    return m
+def _circles(start, goal, circ, circ_r, K, margin):
+    """Per-agent radii and masks (n, C) of the circles (obstacles, then agents) to avoid."""
+    n = len(start)
+    r, m = agent_circles(start[None], goal[None], circ[None], circ_r, np.ones((1, len(circ)), bool),
+                         self_index=(K + np.arange(n))[None], margin=margin)
+    return r[0], m[0]
 
 
 def plan_voronoi(pos, goals, obstacles, alive, *, agent_radius, obstacle_radius, half_size, margin=0.05):
@@ -148,9 +147,8 @@ def plan_voronoi(pos, goals, obstacles, alive, *, agent_radius, obstacle_radius,
         # shortcut with the same clearance: obstacles and the other agents
         circ = np.concatenate([obstacles[b], pos[b]])
         circ_r = np.concatenate([np.full(K, obstacle_radius), np.full(N, agent_radius)]) + agent_radius + margin
-        cm = np.stack([_avoid(j, pos[b, j], goals[b, j], circ, circ_r, K) for j in range(N)])
+        radius, cm = _circles(pos[b], goals[b], circ, circ_r, K, margin)
         cm[:, K:] &= alive[b][None]
-        per_env.append(shortcut(full, np.broadcast_to(circ, (N,) + circ.shape),
-                                np.broadcast_to(circ_r, (N, len(circ_r))), cm))
+        per_env.append(shortcut(full, np.broadcast_to(circ, (N,) + circ.shape), radius, cm))
     P = max(p.shape[1] for p in per_env)
     return np.stack([np.concatenate([p, np.repeat(p[:, -1:], P - p.shape[1], 1)], 1) for p in per_env])
