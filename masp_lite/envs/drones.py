@@ -231,12 +231,13 @@ class DroneWorld:
             self._v3[gone] = 0.0
         self.throttle = throttle
         self._ctrl[:] = (throttle * throttle * MAX_THRUST).reshape(B, -1)
-        sens = self.batch.rollout(SUBSTEPS, record=("sensordata",), out=self._rec)["sensordata"].max(axis=1)
-        pos = self._q3[..., :3]
-        out = (np.abs(pos[..., :2]) > self.scenario.world_size / 2).any(-1) | (pos[..., 2] > CEILING)
+        rec = self.batch.rollout(SUBSTEPS, record=("sensordata",), out=self._rec)["sensordata"]
+        pos, half = self._q3[..., :3], self.scenario.world_size / 2
         self.t = self.t + 1
         leaving = None
-        if sens.any() or out.any():  # contacts (B, 2N): [any, floor] per drone, max over substeps
+        if rec.any() or np.abs(pos[..., :2]).max() > half or pos[..., 2].max() > CEILING:
+            sens = rec.max(axis=1)  # contacts (B, 2N): [any, floor] per drone, max over substeps
+            out = (np.abs(pos[..., :2]) > half).any(-1) | (pos[..., 2] > CEILING)
             touch_any, touch_floor = sens[:, 0::2], sens[:, 1::2]
             drone_contacts = (touch_any - touch_floor) * alive
             self.agent_collisions = ((drone_contacts + touch_floor + out) * alive).astype(np.int64)
@@ -260,7 +261,7 @@ class DroneWorld:
         if torch.is_tensor(actions):
             if not actions.dtype.is_floating_point:
                 raise ValueError(f"actions: expected a float tensor of motor commands, got dtype {actions.dtype}")
-            actions = actions.detach().cpu().numpy()
+            actions = (actions.detach() if actions.requires_grad else actions).cpu().numpy()
         elif isinstance(actions, np.ndarray):
             if not np.issubdtype(actions.dtype, np.floating):
                 raise ValueError(f"actions: expected a float array of motor commands, got dtype {actions.dtype}")
@@ -269,11 +270,11 @@ class DroneWorld:
         if actions.shape != (B, N, 4):
             raise ValueError(f"actions: expected shape (num_envs, num_agents, 4) = ({B}, {N}, 4), got {actions.shape}")
         a = actions.astype(np.float64, copy=False)
-        lo, hi = a.min(), a.max()
-        if not (np.isfinite(lo) and np.isfinite(hi)):
-            raise ValueError("actions: expected finite motor commands, got NaN or inf")
-        if lo < -1.0 or hi > 1.0:
-            raise ValueError(f"actions: expected motor commands in [-1, 1], got values in [{lo:.3g}, {hi:.3g}]")
+        if not np.abs(a).max() <= 1.0:  # one reduction in the common case; NaN fails it too
+            if not np.isfinite(a).all():
+                raise ValueError("actions: expected finite motor commands, got NaN or inf")
+            raise ValueError(f"actions: expected motor commands in [-1, 1], got values in "
+                             f"[{a.min():.3g}, {a.max():.3g}]")
         return a
 
     def _state(self) -> np.ndarray:
@@ -289,14 +290,14 @@ class DroneWorld:
         self.state = s = st[..., :13]
         diff = s[:, :, None, :3] - self.landmark_pos[:, None]                        # (B, N, L, 3)
         near = np.einsum("bnlk,bnlk->bnl", diff, diff) <= self.reach_distance ** 2
-        self.covered = (near & self.alive[..., None]).any(axis=1)
+        self.covered = (near if self._everyone else near & self.alive[..., None]).any(axis=1)
         self.reached = self.reached | self.covered
-        # numpy slices wrapped by torch.from_numpy: cheaper than slicing tensors, and fresh every step
+        # numpy slices wrapped by torch.from_numpy: cheaper than slicing tensors. Every array
+        # handed out here is replaced, never written in place, afterwards (reset copies first).
         if self.dtype == torch.float32:
             st = st.astype(np.float32)
-        flags = np.stack([self.alive, self.covered, self.reached])
         T = self._tensor
-        alive, covered, reached, t = T(flags[0]), T(flags[1]), T(flags[2]), T(self.t)
+        alive, covered, reached, t = T(self.alive), T(self.covered), T(self.reached), T(self.t)
         self._obs = {"agent_pos": T(st[..., :3]), "agent_vel": T(st[..., 7:10]), "agent_quat": T(st[..., 3:7]),
                      "agent_angvel": T(st[..., 10:13]), "throttle": T(st[..., 13:17]),
                      "landmark_pos": T(st[..., 17:]), "obstacle_pos": self._no_obstacles, "alive": alive,
