@@ -77,3 +77,15 @@ def test_device_dtype_and_bad_input():
         hungarian_random_subset(a, g, generator=0)
     with pytest.raises(ValueError, match="goal indices"):
         assignment_cost(a, g, torch.full((2, 3), 3))
+
+
+def test_distance_matrix_is_the_batched_cost():
+    from scipy.spatial.distance import cdist
+
+    from masp_lite.algos.assignment import distance_matrix
+    rng = np.random.default_rng(5)
+    a, g = rng.normal(size=(3, 4, 3)), rng.normal(size=(3, 6, 3))
+    d = distance_matrix(a, g)
+    assert d.shape == (3, 4, 6)
+    for b in range(3):
+        np.testing.assert_allclose(d[b], cdist(a[b], g[b]))
