@@ -6,7 +6,8 @@ which landmarks are reached, every ``stride`` steps), then drawn as a meshcat sc
 * each drone: a hub, four arms and four rotor discs (red: spin −1, blue: spin +1), with
   its landmark's colour on the hub; its whole path as a thin line (the trail);
 * landmarks: balls of the scenario's radius; a green halo appears when one is reached;
-* crashes: a red ball appears where a drone crashed, and the drone disappears;
+* crashes: a red ball appears where a drone crashed, and the drone disappears (a drone
+  dropped by a team-size change disappears without one);
 * the floor: a grey tile of the map's size.
 
 The motion is a meshcat ``Animation`` (position, quaternion and scale tracks), so the
