@@ -62,6 +62,10 @@ def test_cross_encoder_scores_are_a_distribution_and_follow_goal_order():
     ce = CrossEncoder(8)
     ya, yt, d = torch.randn(2, 3, 8), torch.randn(2, 5, 8), torch.rand(2, 3, 5)
     s = ce.scores(ya, yt, d)
+    q = ce.query(ya).unsqueeze(2).expand(2, 3, 5, 8)    # eq. 4 written literally: MLP of the concatenation
+    k = ce.key(yt).unsqueeze(1).expand(2, 3, 5, 8)
+    literal = torch.softmax(ce.score(torch.cat([q, k, d.unsqueeze(-1)], -1)).squeeze(-1), -1)
+    torch.testing.assert_close(s, literal)
     torch.testing.assert_close(s.sum(-1), torch.ones(2, 3))
     perm = torch.randperm(5)
     torch.testing.assert_close(ce.scores(ya, yt[:, perm], d[..., perm]), s[..., perm])
@@ -119,7 +123,9 @@ def _fusion_by_loops(gif, pair, groups, alive):
                 members = [int(j) for j in groups[b, k, g] if int(j) == k or alive[b, j]]
                 h = gif.embed(pair[b, k, members])
                 adj = torch.ones(len(members), len(members)) - torch.eye(len(members))
-                feats.append(gcn_layer(h, adj, gif.gcn[0])[0])
+                for layer in gif.gcn:
+                    h = gcn_layer(h, adj, layer)
+                feats.append(h[0])
                 valid.append(len(members) > 1)
             use = [f for f, v in zip(feats, valid) if v] or feats
             out[b, k] = torch.stack(use).mean(0)
@@ -129,6 +135,7 @@ def _fusion_by_loops(gif, pair, groups, alive):
 def test_group_information_fusion_matches_loops_with_dead_agents():
     torch.manual_seed(4)
     gif = GroupInformationFusion(6, 8)
+    two = GroupInformationFusion(6, 8, layers=2)
     pos, vel = torch.randn(2, 6, 2), torch.randn(2, 6, 2)
     pair = pair_features(pos, vel)
     groups = group_division(random_permutation(2, 6, torch.Generator().manual_seed(0)), 3)
@@ -137,6 +144,9 @@ def test_group_information_fusion_matches_loops_with_dead_agents():
         fast = gif(pair, groups, alive)
         slow = _fusion_by_loops(gif, pair, groups, alive)
     torch.testing.assert_close(fast, slow, atol=1e-5, rtol=1e-5)
+    with torch.no_grad():
+        torch.testing.assert_close(two(pair, groups, alive), _fusion_by_loops(two, pair, groups, alive),
+                                   atol=1e-5, rtol=1e-5)
     moved = pos.clone()
     moved[1, 1] += 0.3  # a dropped agent's state cannot change the others' features
     with torch.no_grad():
@@ -168,7 +178,7 @@ def test_networks_run_for_any_team_size(scenario, n):
     goals = logits.argmax(-1)
     inputs = nets.cae_inputs(obs, goals, random_permutation(3, N))
     assert nets.cae_logits(inputs).shape == (3, N, 5)
-    assert nets.cae_value(inputs, obs, w.horizon).shape == (3, N)
+    assert nets.cae_forward(inputs, obs, w.horizon)[1].shape == (3, N)
     assert nets.gm_value(obs, 1.0, w.horizon).shape == (3, N)
 
 

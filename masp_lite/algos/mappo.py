@@ -41,7 +41,9 @@ class MAPPOConfig:
     lr: float = 7e-4
     """Adam learning rate, all four networks."""
     ppo_epochs: int = 4
-    """Passes over each rollout."""
+    """Passes over each rollout (executor)."""
+    gm_ppo_epochs: int = 10
+    """Passes over each rollout for the Goal Matcher (its rollouts are 3x shorter and cheap)."""
     num_minibatches: int = 2
     """Minibatches per pass (rows are (step, world) pairs)."""
     clip: float = 0.2
@@ -84,7 +86,7 @@ class MAPPOConfig:
     """Updates between checkpoints of the training state."""
 
     def __post_init__(self):
-        ints = ("num_envs", "updates", "ppo_epochs", "num_minibatches", "width", "group_size", "gcn_layers",
+        ints = ("num_envs", "updates", "ppo_epochs", "gm_ppo_epochs", "num_minibatches", "width", "group_size", "gcn_layers",
                 "obstacles_seen", "global_step", "eval_episodes", "checkpoint_every")
         for name in ints:
             v = getattr(self, name)
@@ -213,13 +215,14 @@ class RolloutStorage:
 
 
 def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: MAPPOConfig,
-               value_norm: ValueNorm, generator: torch.Generator) -> dict[str, float]:
+               value_norm: ValueNorm, generator: torch.Generator, epochs: int | None = None) -> dict[str, float]:
     """Run PPO on one level's rollout; returns mean ``policy_loss``, ``value_loss``, ``entropy``.
 
     ``data`` (T, B, ...) must hold ``actions``, ``logp``, ``values`` (normalised critic
     outputs at collection), ``returns`` (raw), ``advantages`` and ``mask`` (alive agents).
     ``evaluate(minibatch) -> (logits, values)`` recomputes the networks on a minibatch.
-    Advantages are standardised over the alive agents of the whole rollout.
+    Advantages are standardised over the alive agents of the whole rollout. ``epochs``
+    overrides ``cfg.ppo_epochs``.
     """
     mask_all = data["mask"]
     adv = data["advantages"]
@@ -229,7 +232,7 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
     stats = {"policy_loss": 0.0, "value_loss": 0.0, "entropy": 0.0}
     n = 0
     params = list(actor.parameters()) + list(critic.parameters())
-    for _ in range(cfg.ppo_epochs):
+    for _ in range(cfg.ppo_epochs if epochs is None else epochs):
         for mb in RolloutStorage.minibatches(data, cfg.num_minibatches, generator):
             logits, values = evaluate(mb)
             logp_all = torch.log_softmax(logits, dim=-1)

@@ -85,8 +85,8 @@ class MASPTrainer:
                 gm.add(**snap, actions=goals, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
             perm = torch.rand(B, N, generator=g).argsort(-1)
             inputs = n.cae_inputs(obs, goals, perm)
-            actions, logp = sample(n.cae_logits(inputs), g)
-            v = n.cae_value(inputs, obs, self.horizon)
+            logits, v = n.cae_forward(inputs, obs, self.horizon)
+            actions, logp = sample(logits, g)
             alive = obs["alive"].clone()
             obs, info = w.step(torch.where(alive, actions, torch.zeros_like(actions)))
             goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand(B, N, 2))
@@ -119,7 +119,7 @@ class MASPTrainer:
     def _cae_eval(self, mb):
         obs = {k: mb[k] for k in OBS_KEYS}
         inputs = self.nets.cae_inputs(obs, mb["goals"], mb["perm"])
-        return self.nets.cae_logits(inputs), self.nets.cae_value(inputs, obs, self.horizon)
+        return self.nets.cae_forward(inputs, obs, self.horizon)
 
     def iteration(self) -> dict[str, float]:
         """Collect, update both levels; returns the row logged to ``progress.csv``."""
@@ -127,7 +127,8 @@ class MASPTrainer:
         r_gm = float(gm_data.pop("reward_mean")[gm_data["mask"]].mean())
         r_cae = float(cae_data.pop("reward_mean")[cae_data["mask"]].mean())
         n, cfg = self.nets, self.cfg
-        s_gm = ppo_update(gm_data, self._gm_eval, n.gm, n.gm_critic, self.gm_opt, cfg, self.gm_norm, self.generator)
+        s_gm = ppo_update(gm_data, self._gm_eval, n.gm, n.gm_critic, self.gm_opt, cfg, self.gm_norm, self.generator,
+                          epochs=cfg.gm_ppo_epochs)
         s_cae = ppo_update(cae_data, self._cae_eval, n.cae, n.cae_critic, self.cae_opt, cfg, self.cae_norm,
                            self.generator)
         self.iterations += 1

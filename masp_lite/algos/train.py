@@ -40,7 +40,7 @@ import torch
 from ..checkpoints import atomic_write_bytes, load_weights, save_weights, sha256
 from .mappo import MAPPOConfig
 
-__all__ = ["add_arguments", "run", "train", "parse_config", "evaluate_nets", "CSV_FIELDS"]
+__all__ = ["add_arguments", "run", "train", "parse_config", "evaluate_nets", "ship_run", "CSV_FIELDS"]
 
 CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward",
               "gm_policy_loss", "gm_value_loss", "gm_entropy", "cae_policy_loss", "cae_value_loss", "cae_entropy",
@@ -196,6 +196,31 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
     }
     atomic_write_bytes(out / "manifest.json", (json.dumps(manifest, indent=2) + "\n").encode())
     return manifest
+
+
+def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None) -> dict:
+    """Copy a finished run's ``weights.pt`` into :mod:`masp_lite.checkpoints` and record it in the manifest.
+
+    The entry keeps the run's manifest (command, seed, env steps, wall-clock, machine, final
+    evaluation) plus the SHA-256 of the copied file, an optional ``evaluate()`` record and a
+    free-text ``note`` (e.g. the machine's load while it trained).
+    """
+    from ..checkpoints import HERE, MANIFEST, read_weights
+    run_dir = Path(run_dir)
+    if not (run_dir / "manifest.json").exists():
+        raise ValueError(f"{run_dir}: expected a finished run (manifest.json)")
+    m = json.loads((run_dir / "manifest.json").read_text())
+    rec = read_weights(run_dir / "weights.pt")
+    name = rec["scenario"]
+    data = (run_dir / "weights.pt").read_bytes()
+    atomic_write_bytes(HERE / f"{name}.pt", data)
+    manifest = json.loads(MANIFEST.read_text()) if MANIFEST.exists() else {}
+    run_info = {k: m[k] for k in ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s", "started",
+                                  "finished", "machine", "config", "final_eval")}
+    manifest[name] = {"file": f"{name}.pt", "sha256": sha256(HERE / f"{name}.pt"), "scenario": name,
+                      "arch": rec["arch"], "training": run_info, "evaluation": evaluation, "note": note}
+    atomic_write_bytes(MANIFEST, (json.dumps(manifest, indent=2, sort_keys=True) + "\n").encode())
+    return manifest[name]
 
 
 def add_arguments(parser) -> None:

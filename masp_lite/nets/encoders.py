@@ -131,11 +131,15 @@ class CrossEncoder(nn.Module):
         self.score = mlp([2 * width + 1, width, 1])
 
     def forward(self, y_a, y_t, dist, goal_mask=None) -> torch.Tensor:
-        B, N, L = y_a.shape
-        M = y_t.shape[1]
-        q = self.query(y_a).unsqueeze(2).expand(B, N, M, L)
-        k = self.key(y_t).unsqueeze(1).expand(B, N, M, L)
-        logits = self.score(torch.cat([q, k, dist.unsqueeze(-1)], dim=-1)).squeeze(-1)
+        L = y_a.shape[-1]
+        first, rest = self.score[0], self.score[1:]
+        # The first layer of MLP([q, k, D]) is W_q' q + W_k' k + w_D D + b: apply it to the N
+        # agents and M goals separately and broadcast, instead of to all N x M concatenations.
+        w = first.weight
+        hq = self.query(y_a) @ w[:, :L].T                                   # (B, N, L)
+        hk = self.key(y_t) @ w[:, L:2 * L].T                                # (B, M, L)
+        hidden = hq.unsqueeze(2) + hk.unsqueeze(1) + dist.unsqueeze(-1) * w[:, 2 * L] + first.bias
+        logits = rest(hidden).squeeze(-1)
         if goal_mask is not None:
             logits = logits.masked_fill(~goal_mask.unsqueeze(1), float("-inf"))
         return logits

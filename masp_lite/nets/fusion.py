@@ -101,14 +101,14 @@ class GroupInformationFusion(nn.Module):
     * ``groups`` (B, N, G, n) from :func:`group_division`;
     * ``alive`` (B, N) bool.
 
-    Nodes are embedded by an MLP (F -> L), each subgraph runs ``layers`` GCN layers, and
+    Nodes are embedded (Linear + ReLU, F -> L), each subgraph runs ``layers`` GCN layers, and
     ``k``'s node (index 0 of each group) is averaged over the groups that have at least
     one alive other member (over all groups when none has).
     """
 
     def __init__(self, in_features: int, width: int = 32, layers: int = 1):
         super().__init__()
-        self.embed = mlp([in_features, width, width], last_activation=True)
+        self.embed = mlp([in_features, width], last_activation=True)
         self.gcn = nn.ModuleList(nn.Linear(width, width) for _ in range(layers))
 
     def forward(self, pair_features: torch.Tensor, groups: torch.Tensor, alive: torch.Tensor) -> torch.Tensor:
@@ -116,17 +116,23 @@ class GroupInformationFusion(nn.Module):
         h = self.embed(pair_features)                                   # (B, N, N, L)
         L = h.shape[-1]
         flat = groups.reshape(B, N, G * n)
-        hg = torch.gather(h, 2, flat.unsqueeze(-1).expand(B, N, G * n, L)).view(B, N, G, n, L)
-        member = torch.gather(alive.unsqueeze(1).expand(B, N, N), 2, flat).view(B, N, G, n)
-        member = member.clone()
+        member = torch.gather(alive.unsqueeze(1).expand(B, N, N), 2, flat).view(B, N, G, n).clone()
         member[..., 0] = True                                           # k is always in its groups
         m = member.to(h.dtype)
-        adj = m.unsqueeze(-1) * m.unsqueeze(-2)
-        adj = adj * (1 - torch.eye(n, dtype=h.dtype, device=h.device))  # edges 1 between members
-        for layer in self.gcn:
-            hg = gcn_layer(hg, adj, layer)
-        mine = hg[..., 0, :]                                            # (B, N, G, L)
         valid = member[..., 1:].any(-1) if n > 1 else member[..., 0]
         w = valid.to(h.dtype)
         w = torch.where(w.sum(-1, keepdim=True) > 0, w, torch.ones_like(w))
+        if len(self.gcn) == 1:
+            # Only k's row of the one layer is needed: with unit edges it is the mean over the
+            # group's members, computed as a (G x N) averaging matrix per agent (no gather).
+            avg = torch.zeros(B, N, G, N, dtype=h.dtype, device=h.device)
+            avg.scatter_add_(3, groups, m / m.sum(-1, keepdim=True))
+            mine = torch.relu(self.gcn[0](avg @ h))                      # (B, N, G, L)
+        else:
+            hg = torch.gather(h, 2, flat.unsqueeze(-1).expand(B, N, G * n, L)).view(B, N, G, n, L)
+            adj = m.unsqueeze(-1) * m.unsqueeze(-2)
+            adj = adj * (1 - torch.eye(n, dtype=h.dtype, device=h.device))  # edges 1 between members
+            for layer in self.gcn:
+                hg = gcn_layer(hg, adj, layer)
+            mine = hg[..., 0, :]
         return (mine * w.unsqueeze(-1)).sum(2) / w.sum(-1, keepdim=True)

@@ -4,7 +4,8 @@
   (fully connected, edges 1) -> embeddings (Linear + ReLU to ``L``) -> one
   :class:`~masp_lite.nets.encoders.SelfEncoder` per graph -> :class:`~masp_lite.nets.encoders.CrossEncoder`
   -> per-agent logits over goals. Nodes hold map-normalised positions (``pos / (world_size/2)``)
-  and velocities (agents) or positions and a covered flag (goals); the Cross-Encoder's
+  and velocities (agents) or positions and a covered flag (goals), plus nearest distances
+  (:func:`gm_inputs`); the Cross-Encoder's
   distance ``D`` is normalised the same way, so one network serves every map size.
   The graphs are the same for every agent, so they are encoded once per world; only
   the Cross-Encoder is per agent. Dropped agents are masked out of the agent graph.
@@ -17,8 +18,8 @@
   clipped at ``SENSE`` metres and padded when there are fewer), embedded by an MLP and
   concatenated with the fusion feature and the goal embedding before the final MLP.
 * Critics (CTDE: centralized training, decentralized execution): :class:`GoalMatcherCritic`
-  pools the whole agent and goal graphs; :class:`ExecutorCritic` is the executor's
-  architecture with global inputs (:func:`global_features`: fractions of landmarks covered
+  pools the whole agent and goal graphs; :class:`ExecutorCritic` reads the executor's
+  features (gradient stopped) and global inputs (:func:`global_features`: fractions of landmarks covered
   and reached, time left). Only the actors are needed to act.
 
 All parameters are shared by the agents and every weight acts per node, pair or group,
@@ -108,18 +109,30 @@ def global_features(obs: dict, horizon: int) -> torch.Tensor:
 
 
 def gm_inputs(obs: dict, scale: float):
-    """Goal Matcher inputs: agent nodes (B, N, 4), goal nodes (B, M, 3), distances (B, N, M)."""
-    a = torch.cat([obs["agent_pos"] / scale, obs["agent_vel"] / MAX_SPEED], dim=-1)
-    g = torch.cat([obs["landmark_pos"] / scale, obs["covered"].to(a.dtype).unsqueeze(-1)], dim=-1)
+    """Goal Matcher inputs: agent nodes (B, N, 5), goal nodes (B, M, 4), distances (B, N, M).
+
+    Agent node: ``[pos / scale (2), vel / MAX_SPEED (2), distance to its nearest goal / scale]``;
+    goal node: ``[pos / scale (2), covered, distance to its nearest alive agent / scale]``
+    (``scale = world_size / 2``). The two nearest-distances are position information the
+    paper's nodes carry implicitly; giving them explicitly lets agent ``k`` compare its own
+    distance ``D_kj`` with the closest competitor's, which speeds up learning to avoid
+    picking the same goal as another agent.
+    """
     dist = torch.cdist(obs["agent_pos"], obs["landmark_pos"]) / scale
+    alive = obs["alive"]
+    near_goal = dist.min(-1).values.unsqueeze(-1)
+    big = torch.finfo(dist.dtype).max
+    near_agent = dist.masked_fill(~alive.unsqueeze(-1), big).min(1).values.clamp(max=4.0).unsqueeze(-1)
+    a = torch.cat([obs["agent_pos"] / scale, obs["agent_vel"] / MAX_SPEED, near_goal], dim=-1)
+    g = torch.cat([obs["landmark_pos"] / scale, obs["covered"].to(a.dtype).unsqueeze(-1), near_agent], dim=-1)
     return a, g, dist
 
 
 class _GraphEncoders(nn.Module):
     def __init__(self, width: int):
         super().__init__()
-        self.embed_agent = mlp([4, width], last_activation=True)
-        self.embed_goal = mlp([3, width], last_activation=True)
+        self.embed_agent = mlp([5, width], last_activation=True)
+        self.embed_goal = mlp([4, width], last_activation=True)
         self.agent_encoder = SelfEncoder(width)
         self.goal_encoder = SelfEncoder(width)
 
@@ -167,15 +180,12 @@ class GoalMatcherCritic(_GraphEncoders):
 class CoordinatedActionExecutor(nn.Module):
     """Low-level actor: ``forward(pair, groups, alive, goal_f, obstacle_f) -> logits`` (B, N, 5)."""
 
-    outputs = NUM_ACTIONS
-    extra_features = 0
-
     def __init__(self, width: int = 32, gcn_layers: int = 1, obstacles_seen: int = 2):
         super().__init__()
         self.fusion = GroupInformationFusion(PAIR_FEATURES, width, gcn_layers)
         self.goal_embed = mlp([GOAL_FEATURES, width], last_activation=True)
         self.obstacle_embed = mlp([OBSTACLE_FEATURES * obstacles_seen, width], last_activation=True)
-        self.head = mlp([3 * width + self.extra_features, width, width, self.outputs])
+        self.head = mlp([3 * width, width, width, NUM_ACTIONS])
 
     def features(self, pair, groups, alive, goal_f, obstacle_f):
         return [self.fusion(pair, groups, alive), self.goal_embed(goal_f), self.obstacle_embed(obstacle_f)]
@@ -184,15 +194,20 @@ class CoordinatedActionExecutor(nn.Module):
         return self.head(torch.cat(self.features(pair, groups, alive, goal_f, obstacle_f), dim=-1))
 
 
-class ExecutorCritic(CoordinatedActionExecutor):
-    """Centralized low-level critic: the executor's layout plus :func:`global_features` -> (B, N)."""
+class ExecutorCritic(nn.Module):
+    """Centralized low-level critic -> (B, N).
 
-    outputs = 1
-    extra_features = GLOBAL_FEATURES
+    It reads the executor's three features (fusion, goal, obstacle) with the gradient
+    stopped, plus :func:`global_features`; sharing the fusion halves the training cost
+    (the Group Information Fusion dominates it) and the actor's loss alone shapes it.
+    """
 
-    def forward(self, pair, groups, alive, goal_f, obstacle_f, extra):
-        x = torch.cat(self.features(pair, groups, alive, goal_f, obstacle_f) + [extra], dim=-1)
-        return self.head(x).squeeze(-1)
+    def __init__(self, width: int = 32):
+        super().__init__()
+        self.head = mlp([3 * width + GLOBAL_FEATURES, width, width, 1])
+
+    def forward(self, features: list, extra):
+        return self.head(torch.cat([f.detach() for f in features] + [extra], dim=-1)).squeeze(-1)
 
 
 class MASPNets(nn.Module):
@@ -214,7 +229,7 @@ class MASPNets(nn.Module):
         self.gm = GoalMatcher(width)
         self.gm_critic = GoalMatcherCritic(width)
         self.cae = CoordinatedActionExecutor(width, gcn_layers, obstacles_seen)
-        self.cae_critic = ExecutorCritic(width, gcn_layers, obstacles_seen)
+        self.cae_critic = ExecutorCritic(width)
 
     def gm_logits(self, obs: dict, scale: float) -> torch.Tensor:
         a, g, dist = gm_inputs(obs, scale)
@@ -236,8 +251,10 @@ class MASPNets(nn.Module):
     def cae_logits(self, inputs: tuple) -> torch.Tensor:
         return self.cae(*inputs)
 
-    def cae_value(self, inputs: tuple, obs: dict, horizon: int) -> torch.Tensor:
-        return self.cae_critic(*inputs, global_features(obs, horizon))
+    def cae_forward(self, inputs: tuple, obs: dict, horizon: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """Executor logits (B, N, 5) and critic values (B, N) from one pass of the fusion."""
+        feats = self.cae.features(*inputs)
+        return self.cae.head(torch.cat(feats, dim=-1)), self.cae_critic(feats, global_features(obs, horizon))
 
 
 class MASPPolicy:
