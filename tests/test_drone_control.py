@@ -119,3 +119,15 @@ def test_h_greedy_covers_landmarks(scenario):
         assert info["reached"].float().mean() >= 0.9 and (info["alive"].sum(1) <= w.scenario.team_after).all()
     else:
         assert info["covered"].float().mean() >= 0.9
+
+
+def test_h_greedy_through_the_registry_and_eval_rollout():
+    from masp_lite import eval as ev
+    from masp_lite.methods import make_policy
+    w = make("drone-5", num_envs=2, seed=1, horizon=200)
+    policy = make_policy("h-greedy", w)
+    assert isinstance(policy, DroneHungarianGreedy)
+    log, decision_s = ev.rollout(w, policy, episodes=2, seed=1)
+    sr = ev.success_rate(log)
+    assert sr.shape == (2,) and ((sr >= 0) & (sr <= 1)).all() and sr.mean() >= 0.6
+    assert (ev.collision_rate(log) >= 0).all() and decision_s > 0
