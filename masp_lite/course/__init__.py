@@ -4,7 +4,7 @@ Authoring recipe (every chapter follows it)
 -------------------------------------------
 **Files.** Write the instructor version ``solutions/NN_name.ipynb`` (``NN`` = chapter
 number, e.g. ``03_graph_encoders.ipynb``). Never edit ``notebooks/NN_name.ipynb`` by hand:
-it is generated. Add the chapter to the course map in ``notebooks/README.md``.
+it is generated. ``notebooks/README.md`` is the course map.
 
 **Skeleton** (checked by :func:`masp_lite.course.authoring.problems`)::
 
@@ -39,10 +39,12 @@ and the graded check cell (nbgrader ``grade: true``, ``points``)::
 :func:`check` prints ``✓``/``✗``/``…`` and returns the learner's function when it passed,
 the library's otherwise — later cells use ``contact_fn``, so a learner who skips still
 runs the chapter. Bind the result to a *new* name: re-running the cell must compare the
-learner's function again, not the fallback with itself. :func:`assert_passed` makes the cell fail for ``nbgrader autograde`` until
-the exercise is solved; in the learner version the generator tags graded cells
-``raises-exception`` so "Run All" and nbval go on past them. ``inputs`` is a list of cases
-(tuple = positional arguments, dict = keyword arguments) or a function ``seed -> case``.
+learner's function again, not the fallback with itself. :func:`assert_passed` makes the
+cell fail for ``nbgrader autograde`` until the exercise is solved; in the learner version
+the generator tags graded cells ``raises-exception`` so "Run All" and nbval go on past
+them. ``inputs`` is a list of cases (tuple = positional arguments, dict = keyword
+arguments) or a function ``seed -> case`` (called for seeds 0, 1, 2); ``rtol``/``atol``
+set the tolerance. Choose cases that a plausible wrong answer fails (try one!).
 Build cells with :mod:`masp_lite.course.authoring` (``markdown``, ``code``,
 ``solution``, ``graded``, ``notebook``) or in JupyterLab with the same metadata.
 
