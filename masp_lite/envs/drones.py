@@ -298,7 +298,7 @@ class DroneWorld:
         # handed out here is replaced, never written in place, afterwards (reset copies first).
         if self.dtype == torch.float32:
             st = st.astype(np.float32)
-        T = self._tensor
+        T = torch.from_numpy if self.device.type == "cpu" else self._tensor
         alive, covered, reached, t = T(self.alive), T(self.covered), T(self.reached), T(self.t)
         self._obs = {"agent_pos": T(st[..., :3]), "agent_vel": T(st[..., 7:10]), "agent_quat": T(st[..., 3:7]),
                      "agent_angvel": T(st[..., 10:13]), "throttle": T(st[..., 13:17]),
