@@ -83,7 +83,7 @@ def compare(got, expected, rtol: float = 1e-5, atol: float = 1e-6, where: str = 
             if diff:
                 return diff
         return None
-    if isinstance(expected, (float, np.floating)) and not isinstance(expected, bool):
+    if isinstance(expected, (int, float, np.integer, np.floating)) and not isinstance(expected, (bool, np.bool_)):
         if torch.is_tensor(got) and got.numel() == 1:
             got = float(got.item())
         elif isinstance(got, np.ndarray) and got.size == 1:
@@ -95,9 +95,11 @@ def compare(got, expected, rtol: float = 1e-5, atol: float = 1e-6, where: str = 
         if not math.isclose(got, expected, rel_tol=rtol, abs_tol=atol):
             return f"{where}: got {got:.6g}, expected {expected:.6g}"
         return None
-    if got != expected:
-        return f"{where}: got {got!r}, expected {expected!r}"
-    return None
+    try:
+        same = bool(got == expected)
+    except (TypeError, ValueError, RuntimeError):  # e.g. an array compared with a string
+        same = False
+    return None if same else f"{where}: got {got!r}, expected {expected!r}"
 
 
 def _compare_arrays(got, expected, rtol, atol, where):
