@@ -153,9 +153,9 @@ class GoalMatcher(_GraphEncoders):
         super().__init__(width)
         self.cross = CrossEncoder(width)
 
-    def forward(self, agent_x, goal_x, dist, alive):
+    def forward(self, agent_x, goal_x, dist, alive, goal_mask=None):
         ya, yt = self.encode(agent_x, goal_x, alive)
-        return self.cross(ya, yt, dist)
+        return self.cross(ya, yt, dist, goal_mask)
 
 
 class GoalMatcherCritic(_GraphEncoders):
@@ -231,9 +231,9 @@ class MASPNets(nn.Module):
         self.cae = CoordinatedActionExecutor(width, gcn_layers, obstacles_seen)
         self.cae_critic = ExecutorCritic(width)
 
-    def gm_logits(self, obs: dict, scale: float) -> torch.Tensor:
+    def gm_logits(self, obs: dict, scale: float, goal_mask: torch.Tensor | None = None) -> torch.Tensor:
         a, g, dist = gm_inputs(obs, scale)
-        return self.gm(a, g, dist, obs["alive"])
+        return self.gm(a, g, dist, obs["alive"], goal_mask)
 
     def gm_value(self, obs: dict, scale: float, horizon: int) -> torch.Tensor:
         a, g, _ = gm_inputs(obs, scale)
@@ -264,6 +264,9 @@ class MASPPolicy:
     :mod:`masp_lite.checkpoints`). ``seed`` seeds the random group division. ``global_step``
     overrides the checkpoint's Goal Matcher period. ``deterministic``: take the most likely
     goal and action (the paper's "highest matching score"); ``False`` samples both.
+    With a team change (``mpe-20to10``, ...) the success rate counts landmarks ever
+    reached, so the Goal Matcher's choice is restricted to landmarks not reached yet (all
+    of them once every one has been reached); fixed teams choose among all landmarks.
     """
 
     def __init__(self, world, checkpoint: str | None = None, seed: int = 0, global_step: int | None = None,
@@ -306,7 +309,10 @@ class MASPPolicy:
     def act(self, obs) -> torch.Tensor:
         due = obs["t"] % self.global_step == 0
         if self.goals is None or bool(due.any()):
-            new = self._pick(self.nets.gm_logits(obs, self.scale))
+            mask = None
+            if self.world.scenario.varying:  # landmarks already reached count for SR; pick among the rest
+                mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
+            new = self._pick(self.nets.gm_logits(obs, self.scale, mask))
             self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
         B, N = self.goals.shape
         perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(self.goals.device)
