@@ -220,3 +220,17 @@ def test_bench_drones_measures_both_sides(capsys):
     assert r["overhead"] == pytest.approx(r["raw_env_steps_per_s"] / r["env_steps_per_s"])
     with pytest.raises(ValueError, match="seconds"):
         bench.run(argparse.Namespace(seconds=0, rounds=1, worlds=[1], threads=1, json=None))
+
+
+def test_reset_of_one_episode_brings_its_crashed_drone_back():
+    w = make("drone-5", num_envs=2, seed=0)
+    a = hover(w)
+    a[0, 0] = -1.0  # episode 0, drone 0 falls and crashes
+    for _ in range(80):
+        obs, _ = w.step(a)
+    assert obs["alive"].tolist() == [[False] + [True] * 4, [True] * 5]
+    start = w.reset(env_ids=[0])["agent_pos"].clone()
+    a[0, 0] = HOVER
+    for _ in range(50):
+        obs, info = w.step(a)
+    assert info["alive"].all() and torch.allclose(obs["agent_pos"], start, atol=1e-5)
