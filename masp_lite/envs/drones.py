@@ -29,7 +29,8 @@ Choices (the paper leaves them open):
   Rotors start at the hover throttle.
 * **Reached (3-D).** A landmark is covered when an alive drone's centre is within
   ``reach_distance = ARM_LENGTH + landmark_radius`` = 0.22 m of its centre: the ball touches
-  the disc swept by the arms. (``agent_radius`` of the scenario is not used by drones.)
+  the disc swept by the arms (the drone presets set ``agent_radius`` to the arm length,
+  so ``Scenario.reach_distance`` says the same).
 * **Crashes.** A drone crashes when MuJoCo reports a contact of its collision sphere with
   another drone or the floor during any physics substep of the step, or when it leaves the
   flight volume. ``collisions`` counts the events of the step: drone–drone pairs + floor

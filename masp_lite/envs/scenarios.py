@@ -83,8 +83,10 @@ def _particle(name, n, k, area, horizon, team_after=None):
 
 
 def _drone(name, n, area, horizon, team_after=None):
+    # A drone's size is its arm length (0.17 m, the Hummingbird's), so reach = 0.17 + 0.05 m.
     return Scenario(name=name, kind="drone", num_agents=n, num_obstacles=0,
-                    world_size=math.sqrt(area), horizon=horizon, team_after=team_after)
+                    world_size=math.sqrt(area), horizon=horizon, team_after=team_after,
+                    agent_radius=0.17)
 
 
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in [
