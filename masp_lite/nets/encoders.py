@@ -118,17 +118,18 @@ class CrossEncoder(nn.Module):
 
     ``forward(y_a, y_t, dist, goal_mask=None) -> logits`` with agent nodes ``y_a``
     (B, N, L), goal nodes ``y_t`` (B, M, L) and L2 distances ``dist`` (B, N, M) (in
-    map-normalised units). The score of (k, j) is ``MLP([W_q y_a^k, W_k y_t^j, D_kj])``;
+    map-normalised units), or (B, N, M, C) with ``C = distance_channels`` distance-derived
+    inputs per pair. The score of (k, j) is ``MLP([W_q y_a^k, W_k y_t^j, D_kj])``;
     :meth:`scores` applies the softmax over goals (``S_intra^k``). The logits are what the
     Goal Matcher's categorical distribution uses. Masked goals get ``-inf``.
     """
 
-    def __init__(self, width: int = 32):
+    def __init__(self, width: int = 32, distance_channels: int = 1):
         super().__init__()
-        self.width = width
+        self.width, self.distance_channels = width, distance_channels
         self.query = nn.Linear(width, width, bias=False)
         self.key = nn.Linear(width, width, bias=False)
-        self.score = mlp([2 * width + 1, width, 1])
+        self.score = mlp([2 * width + distance_channels, width, 1])
 
     def forward(self, y_a, y_t, dist, goal_mask=None) -> torch.Tensor:
         L = y_a.shape[-1]
@@ -138,7 +139,9 @@ class CrossEncoder(nn.Module):
         w = first.weight
         hq = self.query(y_a) @ w[:, :L].T                                   # (B, N, L)
         hk = self.key(y_t) @ w[:, L:2 * L].T                                # (B, M, L)
-        hidden = hq.unsqueeze(2) + hk.unsqueeze(1) + dist.unsqueeze(-1) * w[:, 2 * L] + first.bias
+        if dist.dim() == 3:
+            dist = dist.unsqueeze(-1)
+        hidden = hq.unsqueeze(2) + hk.unsqueeze(1) + dist @ w[:, 2 * L:].T + first.bias
         logits = rest(hidden).squeeze(-1)
         if goal_mask is not None:
             logits = logits.masked_fill(~goal_mask.unsqueeze(1), float("-inf"))

@@ -5,8 +5,9 @@
   :class:`~masp_lite.nets.encoders.SelfEncoder` per graph -> :class:`~masp_lite.nets.encoders.CrossEncoder`
   -> per-agent logits over goals. Nodes hold map-normalised positions (``pos / (world_size/2)``)
   and velocities (agents) or positions and a covered flag (goals), plus nearest distances
-  (:func:`gm_inputs`); the Cross-Encoder's
-  distance ``D`` is normalised the same way, so one network serves every map size.
+  (:func:`gm_inputs`); the Cross-Encoder's distance ``D`` is normalised the same way and
+  comes with a second channel, ``D_kj - min_i D_ij`` (how much farther ``k`` is than the
+  closest agent), so one network serves every map size.
   The graphs are the same for every agent, so they are encoded once per world; only
   the Cross-Encoder is per agent. Dropped agents are masked out of the agent graph.
 * :class:`CoordinatedActionExecutor` (low level, section "Coordinated Action Executor"):
@@ -109,7 +110,11 @@ def global_features(obs: dict, horizon: int) -> torch.Tensor:
 
 
 def gm_inputs(obs: dict, scale: float):
-    """Goal Matcher inputs: agent nodes (B, N, 5), goal nodes (B, M, 4), distances (B, N, M).
+    """Goal Matcher inputs: agent nodes (B, N, 5), goal nodes (B, M, 4), pair distances (B, N, M, 2).
+
+    Pair ``(k, j)``: ``[D_kj, D_kj - min_i D_ij]`` — the L2 distance of eq. 4 and how much
+    farther agent ``k`` is from goal ``j`` than the closest alive agent (0 when ``k`` is
+    the closest).
 
     Agent node: ``[pos / scale (2), vel / MAX_SPEED (2), distance to its nearest goal / scale]``;
     goal node: ``[pos / scale (2), covered, distance to its nearest alive agent / scale]``
@@ -125,7 +130,8 @@ def gm_inputs(obs: dict, scale: float):
     near_agent = dist.masked_fill(~alive.unsqueeze(-1), big).min(1).values.clamp(max=4.0).unsqueeze(-1)
     a = torch.cat([obs["agent_pos"] / scale, obs["agent_vel"] / MAX_SPEED, near_goal], dim=-1)
     g = torch.cat([obs["landmark_pos"] / scale, obs["covered"].to(a.dtype).unsqueeze(-1), near_agent], dim=-1)
-    return a, g, dist
+    margin = (dist - near_agent.transpose(1, 2)).clamp(min=0.0, max=4.0)
+    return a, g, torch.stack([dist, margin], dim=-1)
 
 
 class _GraphEncoders(nn.Module):
@@ -151,7 +157,7 @@ class GoalMatcher(_GraphEncoders):
 
     def __init__(self, width: int = 32):
         super().__init__(width)
-        self.cross = CrossEncoder(width)
+        self.cross = CrossEncoder(width, distance_channels=2)
 
     def forward(self, agent_x, goal_x, dist, alive, goal_mask=None):
         ya, yt = self.encode(agent_x, goal_x, alive)
