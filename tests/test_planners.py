@@ -280,3 +280,11 @@ def test_bench_planners_times_act_and_splits_collisions():
     assert np.isclose(s["cr"], s["agent_agent"] + s["agent_obstacle"]) and s["cr"] > 0
     with pytest.raises(ValueError, match="episodes"):
         step_times("h-orca", "mpe-5", episodes=0)
+
+
+def test_voronoi_route_follows_predecessors():
+    from masp_lite.planners.voronoi import route
+    pred = np.array([-9999, 0, 1, 1, -9999])
+    assert route(pred, 0, 3) == [0, 1, 3]
+    assert route(pred, 0, 0) == [0]
+    assert route(pred, 0, 4) == []

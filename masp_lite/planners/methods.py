@@ -78,6 +78,11 @@ class HungarianPlanner:
             idx = hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"])
         return _np(idx)
 
+    @property
+    def assignment(self) -> torch.Tensor | None:
+        """Goal index per agent (B, N) of the latest global step (-1: none); for playback."""
+        return None if self.goal_index is None else torch.from_numpy(self.goal_index)
+
     def goals(self, obs) -> np.ndarray:
         """Goal position per agent (B, N, 2); an agent without a goal targets where it is."""
         pos, lms = _np(obs["agent_pos"]).astype(np.float64), _np(obs["landmark_pos"]).astype(np.float64)
@@ -126,15 +131,35 @@ class HungarianPlanner:
 
 
 class HOrca(HungarianPlanner):
-    """(H)ORCA: preferred velocity straight to the goal, made collision-free by ORCA each step."""
+    """(H)ORCA: preferred velocity straight to the goal, made collision-free by ORCA each step.
 
-    OPTIONS = dict(time_horizon=1.0, time_horizon_obst=0.5, neighbor_dist=3.0, max_neighbors=8,
-                   max_obstacles=4, safety_margin=0.05, max_speed=MAX_SPEED)
+    ORCA is deterministic and symmetric, so two agents meeting exactly head-on can both stop
+    (and discrete actions cannot produce the tiny sideways drift that would free them).
+    As RVO2's examples perturb preferred velocities against such deadlocks, an agent that is
+    still far from its goal while ORCA slows it below ``stall`` × its preferred speed
+    re-solves with its preferred velocity turned ``detour_deg`` degrees to its right
+    (everyone keeps right, so the pair passes).
+    """
+
+    OPTIONS = dict(time_horizon=0.5, time_horizon_obst=0.3, neighbor_dist=3.0, max_neighbors=8,
+                   max_obstacles=4, safety_margin=0.04, max_speed=MAX_SPEED, stall=0.25, detour_deg=60.0)
 
     def desired_velocity(self, obs, goals, due):
-        o, sc = self.opt, self.scenario
+        o = self.opt
         pos = _np(obs["agent_pos"]).astype(np.float64)
         pref = arrive_velocity(pos, goals, o["max_speed"])
+        out = self._orca(obs, pos, pref)
+        speed, want = np.linalg.norm(out, axis=-1), np.linalg.norm(pref, axis=-1)
+        far = np.linalg.norm(goals - pos, axis=-1) > self.scenario.reach_distance
+        stalled = far & (speed < o["stall"] * want)
+        if stalled.any():
+            a = -np.deg2rad(o["detour_deg"])
+            turned = pref @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+            out = np.where(stalled[..., None], self._orca(obs, pos, np.where(stalled[..., None], turned, pref)), out)
+        return out
+
+    def _orca(self, obs, pos, pref):
+        o, sc = self.opt, self.scenario
         return orca_velocities(pos, _np(obs["agent_vel"]), pref, _np(obs["obstacle_pos"]),
                                agent_radius=sc.agent_radius, obstacle_radius=sc.obstacle_radius,
                                alive=_np(obs["alive"]), max_speed=o["max_speed"],

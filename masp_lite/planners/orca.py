@@ -200,8 +200,8 @@ def _nearest(dist, k):
 
 
 def orca_velocities(pos, vel, pref_vel, obstacle_pos, *, agent_radius, obstacle_radius, alive=None,
-                    max_speed=2.0, time_horizon=1.0, time_horizon_obst=0.5, neighbor_dist=3.0,
-                    max_neighbors=8, max_obstacles=4, safety_margin=0.05, time_step=0.1):
+                    max_speed=2.0, time_horizon=0.5, time_horizon_obst=0.3, neighbor_dist=3.0,
+                    max_neighbors=8, max_obstacles=4, safety_margin=0.04, time_step=0.1):
     """ORCA velocities for batched episodes.
 
     ``pos``, ``vel``, ``pref_vel``: (B, N, 2); ``obstacle_pos`` (B, K, 2) static circles;

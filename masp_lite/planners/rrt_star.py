@@ -112,7 +112,7 @@ def _propagate(nodes, cost, parent, valid):
 
 def rrt_star(start, goal, centres, radii, cmask, rng, *, lo, hi, samples=60, step_size=1.0,
              rewire_radius=1.5, goal_bias=0.2, k_near=8):
-    """Grow one RRT* tree per row and return node paths from start to goal: (A, T + 1, 2).
+    """Grow one RRT* tree per row and return node paths from start to goal: (A, P, 2).
 
     ``start``, ``goal`` (A, 2); ``centres`` (A, C, 2), ``radii`` (A, C), ``cmask`` (A, C)
     the circles to avoid; ``lo``, ``hi`` (A, 2) the sampling box. Rows are padded with
@@ -184,7 +184,7 @@ def rrt_star(start, goal, centres, radii, cmask, rng, *, lo, hi, samples=60, ste
     for a in range(A):  # reverse each chain (short) into start-first order
         pts = nodes[a, chain[a, : depth[a]][::-1]]
         path[a, : len(pts)] = pts
-    return path
+    return path[:, : int(depth.max()) + 1]  # one goal column after the longest chain
 
 
 def shortcut(path, centres, radii, cmask):

@@ -32,7 +32,7 @@ from scipy.spatial import Voronoi
 
 from .rrt_star import agent_circles, segment_hits, shortcut
 
-__all__ = ["safe_edges", "voronoi_paths", "plan_voronoi", "boundary_ring"]
+__all__ = ["safe_edges", "voronoi_paths", "plan_voronoi", "boundary_ring", "route"]
 
 
 def boundary_ring(half_size: float, spacing: float = 0.5, offset: float = 0.0) -> np.ndarray:
@@ -106,16 +106,33 @@ def voronoi_paths(start, goal, obstacles, *, agent_radius, obstacle_radius, half
     _, pred = dijkstra(graph, directed=True, indices=V + np.arange(n), return_predecessors=True)
     paths = []
     for i in range(n):
-        node, route = V + n + i, []
-        while node >= 0 and node != V + i and len(route) <= size:
-            route.append(node)
-            node = pred[i, node]
-        if node != V + i:                                  # no route: straight to the goal
+        nodes = route(pred[i], V + i, V + n + i)
+        if not nodes:                                      # no route: straight to the goal
             paths.append(goal[i][None])
             continue
-        wp = [vor.vertices[r] for r in route[::-1] if r < V]
-        paths.append(np.asarray(wp + [goal[i]]))
+        paths.append(np.asarray([vor.vertices[r] for r in nodes if r < V] + [goal[i]]))
     return paths
+
+
+def route(predecessors, source: int, target: int) -> list[int]:
+    """Node ids from ``source`` to ``target`` (both included) along a shortest-path tree.
+
+    ``predecessors`` is one row of ``scipy.sparse.csgraph.dijkstra(...,
+    return_predecessors=True)`` for ``source``: the node before each node on its shortest
+    path, negative where there is none. Returns ``[]`` when ``target`` is unreachable.
+
+    >>> route(np.array([-9999, 0, 1, -9999]), 0, 2)
+    [0, 1, 2]
+    """
+    out, node = [], int(target)
+    for _ in range(len(predecessors) + 1):
+        out.append(node)
+        if node == source:
+            return out[::-1]
+        node = int(predecessors[node])
+        if node < 0:
+            return []
+    return []
 
 
 def _circles(start, goal, circ, circ_r, K, margin):
