@@ -158,6 +158,12 @@ def test_toy_notebook_has_the_skeleton_and_a_broken_one_does_not():
     assert authoring.problems(nb) == []
     nb.cells = [c for c in nb.cells if not c.source.startswith("## Summary")]
     assert any("## Summary" in p for p in authoring.problems(nb))
+    nb = _toy_notebook()
+    nb.cells[5].source = 'data = open("/home/someone/data.csv")\nwin = r"C:\\Users\\someone"'
+    found = [p for p in authoring.problems(nb) if "machine-specific path" in p]
+    assert found == ["cell 5: contains a machine-specific path"]
+    nb.cells[5].source = 'url = "https://example.org/a/b"'
+    assert authoring.problems(nb) == []
     with pytest.raises(ValueError, match="BEGIN SOLUTION"):
         authoring.solution("def f(): pass", "f")
     with pytest.raises(ValueError, match="grade_id"):

@@ -32,7 +32,7 @@ __all__ = ["markdown", "code", "solution", "graded", "notebook", "problems", "HE
 HEADINGS = ("Objectives", "Setup", "Section", "Summary", "Exercises")
 
 _SECTION = re.compile(r"^## Section \d+: .+\(~?\s*\d+\s*min(utes)?\)\s*$")
-_PATHS = re.compile(r"(/work/|/tmp/|/home/|/Users/|[A-Z]:\\\\)")
+_PATHS = re.compile(r"""["'](?:/|[A-Za-z]:\\+)[\w.-]+[/\\]""")  # a quoted absolute path
 
 
 def markdown(text: str) -> nbformat.NotebookNode:
