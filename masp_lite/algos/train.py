@@ -11,8 +11,10 @@ Trains MASP (:class:`~masp_lite.algos.masp_trainer.MASPTrainer`) and writes, in 
 * ``progress.csv`` — one row per iteration: env steps, wall-clock, training SR/Steps/CR,
   mean rewards, losses and entropies of both levels, and the periodic evaluation
   (deterministic policies, ``eval_episodes`` episodes, fixed evaluation seed);
-* ``manifest.json`` — command, seed, configuration, env steps, wall-clock (summed over
-  resumes), machine and the final evaluation.
+* ``manifest.json`` — the first command, the last one (a resume), seed, configuration, env
+  steps, wall-clock (summed over resumes), machine and the final evaluation. A run can be
+  ended early by resuming it with ``--set updates=N`` (N = iterations done): nothing in the
+  schedule depends on ``updates``, so the manifest's configuration then reproduces it.
 
 ``--set`` takes any :class:`~masp_lite.algos.mappo.MAPPOConfig` field or scenario override
 (``--set updates=300 --set num_envs=32``). ``--init PATH`` starts from a weights file
@@ -127,6 +129,8 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
         raise ValueError(f"{state_path} exists; pass --resume to continue it or choose another --out")
     trainer = MASPTrainer(scenario, cfg, seed=seed, overrides=overrides)
     wall_before, rows, started = 0.0, [], datetime.now(timezone.utc).isoformat(timespec="seconds")
+    default_command = f"python -m masp_lite train --method masp --scenario {scenario} --seed {seed}"
+    first_command = None
     if resume:
         state = _load_state(state_path)
         saved = dict(state.get("config", {}))
@@ -140,6 +144,7 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
                              f"differs in {diff or ['seed']}")
         trainer.load_state_dict(state)
         wall_before, started = float(state["wall_s"]), state["started"]
+        first_command = state.get("command")
         rows = _read_csv(out / "progress.csv", trainer.iterations)
     elif init is not None:
         nets, rec = load_weights(init, any_scenario=True)
@@ -153,7 +158,8 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
 
     def save():
         st = trainer.state_dict()
-        st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started)
+        st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started,
+                  command=first_command or command or default_command)
         _save_state(state_path, st)
         save_weights(out / "weights.pt", trainer.nets, sc)
         _write_csv(out / "progress.csv", rows)
@@ -184,7 +190,8 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
     final = evaluate_nets(trainer.nets, sc, overrides, cfg.eval_episodes)
     manifest = {
         "method": "masp", "scenario": sc, "overrides": dict(overrides or {}), "seed": int(seed),
-        "command": command or f"python -m masp_lite train --method masp --scenario {sc} --seed {seed}",
+        "command": first_command or command or default_command,
+        "last_command": command or default_command,
         "init": str(init) if init is not None else None, "config": dataclasses.asdict(cfg),
         "arch": dict(trainer.nets.arch), "iterations": trainer.iterations, "env_steps": trainer.env_steps,
         "wall_clock_s": round(wall(), 1), "started": started,
