@@ -1,0 +1,69 @@
+"""Paper-format tables of :func:`masp_lite.eval.evaluate` records.
+
+Every cell is "mean (std)" with two decimals, as in the paper's tables; Steps is a
+backslash when no episode reached SR 1 (the paper's rule). Plain text, markdown and LaTeX.
+"""
+from __future__ import annotations
+
+__all__ = ["format_table"]
+
+_METRICS = (("steps", "Steps", r"$\downarrow$", "↓"), ("sr", "SR", r"$\uparrow$", "↑"),
+            ("cr", "CR", r"$\downarrow$", "↓"))
+
+
+def _cell(stat: dict, latex: bool) -> str:
+    """"mean (std)" with 2 decimals; a missing mean is the paper's backslash (only Steps has one)."""
+    if stat.get("mean") is None:
+        return r"$\backslash$" if latex else "\\"
+    if latex:
+        return f"{stat['mean']:.2f}\\scriptsize{{({stat['std']:.2f})}}"
+    return f"{stat['mean']:.2f} ({stat['std']:.2f})"
+
+
+def _render(head: list[str], body: list[list[str]], fmt: str) -> str:
+    if fmt == "latex":
+        esc = lambda c: c.replace("_", r"\_")  # noqa: E731
+        lines = [r"\begin{tabular}{" + "l" * 2 + "c" * (len(head) - 2) + "}", r"\hline",
+                 " & ".join(map(esc, head)) + r" \\", r"\hline"]
+        lines += [" & ".join(map(esc, row)) + r" \\" for row in body]
+        return "\n".join(lines + [r"\hline", r"\end{tabular}"])
+    widths = [max(len(c) for c in col) for col in zip(head, *body)]
+    if fmt == "text":
+        return "\n".join("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in [head, *body])
+    line = lambda row: "| " + " | ".join(c.ljust(w) for c, w in zip(row, widths)) + " |"  # noqa: E731
+    return "\n".join([line(head), "|" + "|".join("-" * (w + 2) for w in widths) + "|", *map(line, body)])
+
+
+def format_table(rows, fmt: str = "markdown", layout: str = "rows") -> str:
+    """Records of :func:`evaluate` as a table of "mean (std)" cells with 2 decimals.
+
+    ``layout="rows"``: one row per record — Method, Scenario, Steps ↓, SR ↑, CR ↓ and the
+    decision time (ms per step). ``layout="paper"``: the paper's tables — for each scenario
+    three rows (Steps, SR, CR) and one column per method. Steps is a backslash when no
+    episode reached SR 1, as in the paper. ``fmt``: ``"markdown"``, ``"text"`` (aligned
+    columns) or ``"latex"`` (a ``tabular``; stds in ``\\scriptsize``, the backslash as
+    ``$\\backslash$``, arrows as ``$\\downarrow$``, as the paper typesets them).
+    """
+    rows = [rows] if isinstance(rows, dict) else list(rows)
+    if fmt not in ("markdown", "text", "latex") or layout not in ("rows", "paper"):
+        raise ValueError(f"format_table: expected fmt in ('markdown', 'text', 'latex') and layout in "
+                         f"('rows', 'paper'), got {fmt!r}, {layout!r}")
+    latex = fmt == "latex"
+    name = lambda m: (rf"\textit{{{m[1]}}} {m[2]}" if latex else f"{m[1]} {m[3]}")  # noqa: E731
+    try:
+        if layout == "rows":
+            head = ["Method", "Scenario", *map(name, _METRICS), "Decision (ms)"]
+            body = [[r["method"], r["scenario"], *(_cell(r[m[0]], latex) for m in _METRICS),
+                     _cell(r["decision_ms"], latex)] for r in rows]
+        else:
+            methods = list(dict.fromkeys(r["method"] for r in rows))
+            scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
+            cell = {(r["scenario"], r["method"]): r for r in rows}
+            head = ["Scenario", "Metric", *methods]
+            body = [[sc if i == 0 else "", name(m),
+                     *(_cell(cell[sc, meth][m[0]], latex) if (sc, meth) in cell else "" for meth in methods)]
+                    for sc in scenarios for i, m in enumerate(_METRICS)]
+    except (KeyError, TypeError):
+        raise ValueError("format_table: expected evaluate() records with method, scenario, "
+                         "steps, sr, cr and decision_ms") from None
+    return _render(head, body, fmt)
