@@ -145,6 +145,7 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
         trainer.load_state_dict(state)
         wall_before, started = float(state["wall_s"]), state["started"]
         first_command = state.get("command")
+        init = state.get("init") or init
         rows = _read_csv(out / "progress.csv", trainer.iterations)
     elif init is not None:
         nets, rec = load_weights(init, any_scenario=True)
@@ -159,7 +160,7 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
     def save():
         st = trainer.state_dict()
         st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started,
-                  command=first_command or command or default_command)
+                  command=first_command or command or default_command, init=str(init) if init is not None else "")
         _save_state(state_path, st)
         save_weights(out / "weights.pt", trainer.nets, sc)
         _write_csv(out / "progress.csv", rows)
