@@ -117,3 +117,15 @@ def test_shipped_weights_load_and_act():
         obs = w.reset()
         pol.reset(obs)
         assert pol.act(obs).shape == (2, w.num_agents)
+
+
+def test_shipped_file_that_differs_from_manifest_is_refused(tmp_path, monkeypatch):
+    import masp_lite.checkpoints as ck
+    monkeypatch.setattr(ck, "HERE", tmp_path)
+    monkeypatch.setattr(ck, "MANIFEST", tmp_path / "manifest.json")
+    save_weights(tmp_path / "mpe-5.pt", MASPNets(width=8), "mpe-5")
+    (tmp_path / "manifest.json").write_text(json.dumps({"mpe-5": {"file": "mpe-5.pt", "sha256": "0" * 64}}))
+    with pytest.raises(ValueError, match="differ from manifest"):
+        load_weights(None, scenario="mpe-5")
+    with pytest.raises(ValueError, match="no shipped weights"):
+        load_weights(None, scenario="mpe-20")
