@@ -20,8 +20,8 @@
   concatenated with the fusion feature and the goal embedding before the final MLP.
 * Critics (CTDE: centralized training, decentralized execution): :class:`GoalMatcherCritic`
   pools the whole agent and goal graphs; :class:`ExecutorCritic` reads the executor's
-  features (gradient stopped) and global inputs (:func:`global_features`: fractions of landmarks covered
-  and reached, time left). Only the actors are needed to act.
+  features (gradient stopped) and global inputs (:func:`global_features`: fractions of
+  landmarks covered and reached, time left). Only the actors are needed to act.
 
 All parameters are shared by the agents and every weight acts per node, pair or group,
 so the networks run for any team size. Executor inputs are in metres (MPE's dynamics do
@@ -39,7 +39,7 @@ from .fusion import GroupInformationFusion
 
 __all__ = ["GoalMatcher", "GoalMatcherCritic", "CoordinatedActionExecutor", "ExecutorCritic",
            "pair_features", "goal_features", "obstacle_features", "global_features", "gm_inputs",
-           "MAX_SPEED", "SENSE"]
+           "MASPNets", "MASPPolicy", "MAX_SPEED", "SENSE"]
 
 MAX_SPEED = 2.0
 """MPE's terminal speed under a constant action (m/s); velocities are divided by it."""
