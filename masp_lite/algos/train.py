@@ -210,8 +210,9 @@ def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None) -
     """Copy a finished run's ``weights.pt`` into :mod:`masp_lite.checkpoints` and record it in the manifest.
 
     The entry keeps the run's manifest (command, seed, env steps, wall-clock, machine, final
-    evaluation) plus the SHA-256 of the copied file, an optional ``evaluate()`` record and a
-    free-text ``note`` (e.g. the machine's load while it trained).
+    evaluation) plus the SHA-256 of the copied file, the run's ``progress.csv`` (copied as
+    ``<scenario>.progress.csv``), an optional ``evaluate()`` record and a free-text ``note``
+    (e.g. the machine's load while it trained).
     """
     from ..checkpoints import HERE, MANIFEST, read_weights
     run_dir = Path(run_dir)
@@ -222,11 +223,16 @@ def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None) -
     name = rec["scenario"]
     data = (run_dir / "weights.pt").read_bytes()
     atomic_write_bytes(HERE / f"{name}.pt", data)
+    progress = None
+    if (run_dir / "progress.csv").exists():  # the training curves travel with the weights
+        progress = f"{name}.progress.csv"
+        atomic_write_bytes(HERE / progress, (run_dir / "progress.csv").read_bytes())
     manifest = json.loads(MANIFEST.read_text()) if MANIFEST.exists() else {}
     run_info = {k: m[k] for k in ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s", "started",
                                   "finished", "machine", "config", "final_eval")}
     manifest[name] = {"file": f"{name}.pt", "sha256": sha256(HERE / f"{name}.pt"), "scenario": name,
-                      "arch": rec["arch"], "training": run_info, "evaluation": evaluation, "note": note}
+                      "arch": rec["arch"], "training": run_info, "evaluation": evaluation, "note": note,
+                      "progress": progress}
     atomic_write_bytes(MANIFEST, (json.dumps(manifest, indent=2, sort_keys=True) + "\n").encode())
     return manifest[name]
 
