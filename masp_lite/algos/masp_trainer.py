@@ -144,7 +144,7 @@ class MASPTrainer:
         return {"nets": self.nets.state_dict(), "gm_opt": self.gm_opt.state_dict(),
                 "cae_opt": self.cae_opt.state_dict(), "gm_norm": self.gm_norm.state_dict(),
                 "cae_norm": self.cae_norm.state_dict(), "generator": self.generator.get_state(),
-                "world_rng": self.world._rng.get_state(), "iterations": self.iterations,
+                "world_rng": self.world.get_rng_state(), "iterations": self.iterations,
                 "env_steps": self.env_steps, "config": asdict(self.cfg), "seed": self.seed}
 
     def load_state_dict(self, state: dict) -> None:
@@ -154,5 +154,5 @@ class MASPTrainer:
         self.gm_norm.load_state_dict(state["gm_norm"])
         self.cae_norm.load_state_dict(state["cae_norm"])
         self.generator.set_state(state["generator"])
-        self.world._rng.set_state(state["world_rng"])
+        self.world.set_rng_state(state["world_rng"])
         self.iterations, self.env_steps = int(state["iterations"]), int(state["env_steps"])

@@ -316,6 +316,15 @@ class ParticleWorld:
         al_dist = torch.cdist(pos, self.landmark_pos)                             # (B, N, L)
         self.covered = ((al_dist <= sc.reach_distance) & alive.unsqueeze(2)).any(dim=1)
 
+    # ------------------------------------------------------------- RNG state
+    def get_rng_state(self) -> torch.Tensor:
+        """State of the world's own generator (spawns, team changes), for exact resumes."""
+        return self._rng.get_state()
+
+    def set_rng_state(self, state: torch.Tensor) -> None:
+        """Restore a state from :meth:`get_rng_state`."""
+        self._rng.set_state(state)
+
     # ------------------------------------------------------------- observing
     @property
     def done(self) -> torch.Tensor:
