@@ -115,6 +115,7 @@ class DroneWorld:
         self._q3, self._v3 = self._qpos.reshape(B, N, 7), self._qvel.reshape(B, N, 6)  # views of the state rows
         assert np.shares_memory(self._q3, self._qpos) and np.shares_memory(self._v3, self._qvel)
         self._no_obstacles = torch.zeros(B, 0, 3, dtype=dtype, device=self.device)
+        self._held = {}  # name -> (array, its tensor): see _same
         self._everyone = True  # every drone of every episode is still flying
         self.reset()
 
@@ -289,7 +290,7 @@ class DroneWorld:
 
     def _update_coverage(self):
         """Covered/reached landmarks, then the tensors that ``observe`` and ``info`` hand out."""
-        st = np.concatenate([self._q3, self._v3, self.throttle, self.landmark_pos], -1)
+        st = np.concatenate([self._q3, self._v3, self.throttle], -1)
         if not self._everyone:
             st[..., :13] = np.where(self.alive[..., None], st[..., :13], self._frozen)
         self.state = s = st[..., :13]
@@ -298,18 +299,28 @@ class DroneWorld:
         self.covered = (near if self._everyone else near & self.alive[..., None]).any(axis=1)
         self.reached = self.reached | self.covered
         # numpy slices wrapped by torch.from_numpy: cheaper than slicing tensors. Every array
-        # handed out here is replaced, never written in place, afterwards (reset copies first).
+        # handed out here is replaced, never written in place, afterwards (reset copies first),
+        # so arrays that change only on events (landmarks, alive, contacts) keep their tensors.
         if self.dtype == torch.float32:
             st = st.astype(np.float32)
-        T = torch.from_numpy if self.device.type == "cpu" else self._tensor
-        alive, covered, reached, t = T(self.alive), T(self.covered), T(self.reached), T(self.t)
+        T, same = (torch.from_numpy if self.device.type == "cpu" else self._tensor), self._same
+        alive, covered, reached, t = same("alive"), T(self.covered), T(self.reached), T(self.t)
         self._obs = {"agent_pos": T(st[..., :3]), "agent_vel": T(st[..., 7:10]), "agent_quat": T(st[..., 3:7]),
                      "agent_angvel": T(st[..., 10:13]), "throttle": T(st[..., 13:17]),
-                     "landmark_pos": T(st[..., 17:]), "obstacle_pos": self._no_obstacles, "alive": alive,
+                     "landmark_pos": same("landmark_pos"), "obstacle_pos": self._no_obstacles, "alive": alive,
                      "covered": covered, "reached": reached, "t": t}
-        self._info = {"covered": covered, "reached": reached, "collisions": T(self.collisions),
-                      "agent_collisions": T(self.agent_collisions), "alive": alive,
+        self._info = {"covered": covered, "reached": reached, "collisions": same("collisions"),
+                      "agent_collisions": same("agent_collisions"), "alive": alive,
                       "done": T(self.t >= self.horizon), "t": t}
+
+    def _same(self, name: str) -> torch.Tensor:
+        """The tensor of array attribute ``name``, rebuilt only when the array was replaced."""
+        arr = getattr(self, name)
+        held = self._held.get(name)
+        if held is None or held[0] is not arr:
+            a = arr.astype(np.float32) if arr.dtype == np.float64 and self.dtype == torch.float32 else arr
+            held = self._held[name] = (arr, self._tensor(a))
+        return held[1]
 
     def _tensor(self, a: np.ndarray) -> torch.Tensor:
         t = torch.from_numpy(a)
