@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import time
 
 __all__ = ["TARGETS", "add_arguments", "run", "load_target"]
 
@@ -28,6 +29,17 @@ TARGETS = {
     "planners": "step time of the classical planners",
     "drones": "MuJoCo drone world throughput",
 }
+
+
+def calls_per_second(fn, seconds: float, warmup: int = 3) -> float:
+    """Calls of ``fn`` per second of wall time, after ``warmup`` untimed calls (shared by every target)."""
+    for _ in range(warmup):
+        fn()
+    n, start = 0, time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < seconds:
+        fn()
+        n += 1
+    return n / elapsed
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 
 import mujoco
 import numpy as np
@@ -28,6 +27,7 @@ import torch
 
 from ..envs.drone_model import HOVER_COMMAND, SUBSTEPS
 from ..envs.drones import DroneWorld
+from . import calls_per_second
 
 SCENARIO = "drone-20"
 
@@ -38,17 +38,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--worlds", type=int, nargs="+", default=[1, 16], help="batch sizes (default 1 16)")
     parser.add_argument("--threads", type=int, default=1, help="mujoco.batch threads (default 1)")
     parser.add_argument("--json", metavar="PATH", default=None, help="also write the results as JSON")
-
-
-def _timed(step, seconds: float) -> float:
-    """Calls of ``step`` per second, after a short warm-up."""
-    for _ in range(3):
-        step()
-    n, start = 0, time.perf_counter()
-    while (elapsed := time.perf_counter() - start) < seconds:
-        step()
-        n += 1
-    return n / elapsed
 
 
 def measure(num_envs: int, seconds: float, threads: int = 1, rounds: int = 5, seed: int = 0) -> dict:
@@ -74,8 +63,8 @@ def measure(num_envs: int, seconds: float, threads: int = 1, rounds: int = 5, se
 
     world_rate = raw_rate = 0.0
     for _ in range(rounds):
-        world_rate = max(world_rate, _timed(world_step, seconds / rounds) * num_envs)
-        raw_rate = max(raw_rate, _timed(raw_step, seconds / rounds) * num_envs)
+        world_rate = max(world_rate, calls_per_second(world_step, seconds / rounds) * num_envs)
+        raw_rate = max(raw_rate, calls_per_second(raw_step, seconds / rounds) * num_envs)
     return {"worlds": num_envs, "env_steps_per_s": world_rate, "agent_steps_per_s": world_rate * world.num_agents,
             "raw_env_steps_per_s": raw_rate, "overhead": raw_rate / world_rate}
 

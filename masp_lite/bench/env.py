@@ -28,11 +28,11 @@ import argparse
 import json
 import os
 import statistics
-import time
 
 import torch
 
 from ..envs.particle import NUM_ACTIONS, ParticleWorld
+from . import calls_per_second
 
 SCENARIO = "mpe-50"
 RATIO_AT = 64  # the batch size at which masp-lite is compared with mpe2
@@ -59,13 +59,7 @@ def measure_masp(num_envs: int, seconds: float, seed: int = 0) -> float:
         if bool(world.done.any()):
             world.reset()
 
-    for _ in range(3):
-        one_step()
-    steps, start = 0, time.perf_counter()
-    while (elapsed := time.perf_counter() - start) < seconds:
-        one_step()
-        steps += 1
-    return steps * num_envs * world.num_agents / elapsed
+    return calls_per_second(one_step, seconds) * num_envs * world.num_agents
 
 
 def measure_mpe2(seconds: float, num_agents: int = 50, horizon: int = 90, seed: int = 0) -> float | None:
@@ -86,13 +80,9 @@ def measure_mpe2(seconds: float, num_agents: int = 50, horizon: int = 90, seed: 
         if not env.agents:
             env.reset()
 
-    one_step()
-    steps, start = 0, time.perf_counter()
-    while (elapsed := time.perf_counter() - start) < seconds:
-        one_step()
-        steps += 1
+    rate = calls_per_second(one_step, seconds, warmup=1)
     env.close()
-    return steps * num_agents / elapsed
+    return rate * num_agents
 
 
 def _load() -> float | None:

@@ -38,14 +38,13 @@ one. There is no built-in render mode: 3-D playback is :mod:`masp_lite.viz.meshc
 """
 from __future__ import annotations
 
-import warnings
 
 import gymnasium
 import numpy as np
 import torch
-from pettingzoo import ParallelEnv
 
 from .drones import DroneWorld
+from .pettingzoo import WorldParallelEnv
 from .scenarios import Scenario, get_scenario
 
 __all__ = ["parallel_env", "DroneParallelEnv", "RESET_OPTIONS"]
@@ -59,8 +58,10 @@ def parallel_env(scenario: str | Scenario = "drone-5", render_mode: str | None =
     return DroneParallelEnv(get_scenario(scenario, **overrides), render_mode=render_mode)
 
 
-class DroneParallelEnv(ParallelEnv):
+class DroneParallelEnv(WorldParallelEnv):
     """One drone-world episode, drone by drone (see the module docstring for the spaces)."""
+
+    reset_options = RESET_OPTIONS
 
     metadata = {"name": "masp_lite_drones", "render_modes": [], "render_fps": 62, "is_parallelizable": True}
 
@@ -81,24 +82,11 @@ class DroneParallelEnv(ParallelEnv):
         self.observation_spaces = {a: box(-np.inf, np.inf, (10 * N + 9,), np.float32) for a in self.possible_agents}
         self.action_spaces = {a: box(-1.0, 1.0, (4,), np.float32) for a in self.possible_agents}
 
-    def observation_space(self, agent):
-        return self.observation_spaces[agent]
 
-    def action_space(self, agent):
-        return self.action_spaces[agent]
 
-    @property
-    def world(self) -> DroneWorld:
-        """The underlying batched world (``num_envs == 1``)."""
-        return self._world
 
     def reset(self, seed: int | None = None, options: dict | None = None):
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(RESET_OPTIONS))
-        if unknown:
-            warnings.warn(f"reset: ignoring unknown option(s) {unknown}; understood options are "
-                          f"{list(RESET_OPTIONS)}", stacklevel=2)
-        obs = self._world.reset(seed=seed, options={k: v for k, v in options.items() if k in RESET_OPTIONS})
+        obs = self._world.reset(seed=seed, options=self._known_options(options))
         self.agents = self.possible_agents[:]
         o = self._observe(obs)
         return {a: o[self._index[a]] for a in self.agents}, self._infos(self.agents, obs)

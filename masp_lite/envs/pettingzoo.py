@@ -85,8 +85,38 @@ def parallel_env(scenario: str | Scenario = "mpe-5", render_mode: str | None = N
     return ParticleParallelEnv(sc, render_mode=render_mode)
 
 
-class ParticleParallelEnv(ParallelEnv):
+class WorldParallelEnv(ParallelEnv):
+    """What both worlds' PettingZoo faces share: spaces by agent, the world, reset options."""
+
+    reset_options: tuple[str, ...] = ()
+    """The reset options this face understands; others are ignored with a warning."""
+
+    def observation_space(self, agent):
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent):
+        return self.action_spaces[agent]
+
+    @property
+    def world(self):
+        """The underlying batched world (``num_envs == 1``)."""
+        return self._world
+
+    def _known_options(self, options: dict | None) -> dict:
+        """The understood reset options. Unknown keys only warn: PettingZoo's own API test
+        resets with ``options={"options": 1}``."""
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(self.reset_options))
+        if unknown:
+            warnings.warn(f"reset: ignoring unknown option(s) {unknown}; understood options are "
+                          f"{list(self.reset_options)}", stacklevel=3)
+        return {k: v for k, v in options.items() if k in self.reset_options}
+
+
+class ParticleParallelEnv(WorldParallelEnv):
     """One particle-world episode, agent by agent (see the module docstring for the spaces)."""
+
+    reset_options = RESET_OPTIONS
 
     metadata = {"name": "masp_lite_particle", "render_modes": ["human", "rgb_array"],
                 "render_fps": 10, "is_parallelizable": True}
@@ -114,16 +144,8 @@ class ParticleParallelEnv(ParallelEnv):
         self._fig = None
 
     # ---------------------------------------------------------------- spaces
-    def observation_space(self, agent):
-        return self.observation_spaces[agent]
 
-    def action_space(self, agent):
-        return self.action_spaces[agent]
 
-    @property
-    def world(self) -> ParticleWorld:
-        """The underlying batched world (``num_envs == 1``)."""
-        return self._world
 
     @property
     def agent_pos(self) -> np.ndarray:
@@ -137,12 +159,7 @@ class ParticleParallelEnv(ParallelEnv):
 
     # ------------------------------------------------------------ episode
     def reset(self, seed: int | None = None, options: dict | None = None):
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(RESET_OPTIONS))
-        if unknown:
-            warnings.warn(f"reset: ignoring unknown option(s) {unknown}; understood options are "
-                          f"{list(RESET_OPTIONS)}", stacklevel=2)
-        self._world.reset(seed=seed, options={k: v for k, v in options.items() if k in RESET_OPTIONS})
+        self._world.reset(seed=seed, options=self._known_options(options))
         self.agents = self.possible_agents[:]
         obs = self._observe()
         infos = self._infos(self.agents)
