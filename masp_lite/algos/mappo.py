@@ -78,6 +78,10 @@ class MAPPOConfig:
     """Nearest obstacles the executor sees."""
     global_step: int = 3
     """Environment steps per Goal Matcher decision."""
+    gm_decode: str = "joint"
+    """How training samples goals from the Goal Matcher (:mod:`masp_lite.nets.decoding`):
+    ``joint`` draws distinct goals agent by agent in a random order; ``independent`` lets
+    every agent sample alone (duplicates allowed, the paper's literal wording)."""
     eval_every: int = 10
     """Updates between evaluations (0: only at the end)."""
     eval_episodes: int = 32
@@ -97,6 +101,8 @@ class MAPPOConfig:
         for name in ("gamma", "gae_lambda", "gm_gamma"):
             if not 0.0 <= float(getattr(self, name)) <= 1.0:
                 raise ValueError(f"{name}: expected a number in [0, 1], got {getattr(self, name)!r}")
+        if self.gm_decode not in ("joint", "independent"):
+            raise ValueError(f"gm_decode: expected 'joint' or 'independent', got {self.gm_decode!r}")
         for name in ("lr", "clip", "huber_delta", "max_grad_norm"):
             if not float(getattr(self, name)) > 0:
                 raise ValueError(f"{name}: expected a positive number, got {getattr(self, name)!r}")

@@ -9,8 +9,10 @@ restoring :meth:`state_dict` therefore restores training exactly.
 Per environment step ``t`` of a rollout (all worlds and agents at once, under
 ``torch.inference_mode``):
 
-1. every ``global_step`` steps the Goal Matcher samples a goal per agent; its reward
-   ``R_GM`` (eq. 1) is computed at once against the Hungarian assignment;
+1. every ``global_step`` steps the Goal Matcher samples a goal per agent — distinct goals,
+   drawn agent by agent in a random order (stored with the picks), unless
+   ``gm_decode="independent"`` (:mod:`masp_lite.nets.decoding`); its reward ``R_GM``
+   (eq. 1) is computed at once against the Hungarian assignment;
 2. the executor samples an action per agent from its goal, a fresh random group order
    (stored, so the update rebuilds the same groups), and the world steps;
 3. ``R_CAE`` (eq. 5) is computed after the step.
@@ -27,6 +29,7 @@ from dataclasses import asdict
 import torch
 
 from ..envs import make
+from ..nets.decoding import conditional_logits, sequential_sample
 from ..nets.policies import MASPNets
 from .mappo import MAPPOConfig, RolloutStorage, ValueNorm, gae, ppo_update
 from .rewards import executor_reward, goal_matcher_reward
@@ -78,11 +81,15 @@ class MASPTrainer:
         for t in range(self.horizon):
             snap = {k: obs[k].clone() for k in OBS_KEYS}
             if t % cfg.global_step == 0:
-                goals, logp = sample(n.gm_logits(obs, self.scale), g)
+                logits = n.gm_logits(obs, self.scale)
+                if cfg.gm_decode == "joint":
+                    goals, logp, rank = sequential_sample(logits, obs["alive"], g)
+                else:
+                    (goals, logp), rank = sample(logits, g), torch.zeros(B, N, dtype=torch.long)
                 v = n.gm_value(obs, self.scale, self.horizon)
                 goal_mask = ~obs["reached"] if w.scenario.varying else None
                 r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask)
-                gm.add(**snap, actions=goals, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
+                gm.add(**snap, actions=goals, rank=rank, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
             perm = torch.rand(B, N, generator=g).argsort(-1)
             inputs = n.cae_inputs(obs, goals, perm)
             logits, v = n.cae_forward(inputs, obs, self.horizon)
@@ -114,7 +121,10 @@ class MASPTrainer:
     # ------------------------------------------------------------------ update
     def _gm_eval(self, mb):
         obs = {k: mb[k] for k in OBS_KEYS}
-        return self.nets.gm_logits(obs, self.scale), self.nets.gm_value(obs, self.scale, self.horizon)
+        logits = self.nets.gm_logits(obs, self.scale)
+        if self.cfg.gm_decode == "joint":
+            logits = conditional_logits(logits, mb["actions"], mb["rank"], obs["alive"])
+        return logits, self.nets.gm_value(obs, self.scale, self.horizon)
 
     def _cae_eval(self, mb):
         obs = {k: mb[k] for k in OBS_KEYS}

@@ -269,14 +269,18 @@ class MASPPolicy:
     ``checkpoint``: a weights file (default: the shipped one for the world's scenario, see
     :mod:`masp_lite.checkpoints`). ``seed`` seeds the random group division. ``global_step``
     overrides the checkpoint's Goal Matcher period. ``deterministic``: take the most likely
-    goal and action (the paper's "highest matching score"); ``False`` samples both.
+    goals and action (the paper's "highest matching score"); ``False`` samples both.
+    ``decode``: how the Goal Matcher's scores become goals (:mod:`masp_lite.nets.decoding`):
+    ``"joint"`` (default) gives the alive agents distinct goals — the most likely such
+    assignment, or the sequential draw of training when sampling; ``"independent"`` lets
+    every agent take its own best goal, duplicates allowed (the paper's literal wording).
     With a team change (``mpe-20to10``, ...) the success rate counts landmarks ever
     reached, so the Goal Matcher's choice is restricted to landmarks not reached yet (all
     of them once every one has been reached); fixed teams choose among all landmarks.
     """
 
     def __init__(self, world, checkpoint: str | None = None, seed: int = 0, global_step: int | None = None,
-                 deterministic: bool = True, any_scenario: bool = False):
+                 deterministic: bool = True, any_scenario: bool = False, decode: str = "joint"):
         from ..checkpoints import load_weights
         if getattr(world.scenario, "kind", None) != "particle":
             raise ValueError("masp: expected a particle world (mpe-* scenario)")
@@ -286,20 +290,25 @@ class MASPPolicy:
         gs = self.nets.arch["global_step"] if global_step is None else global_step
         if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
-        self.global_step, self.deterministic, self.seed = gs, bool(deterministic), int(seed)
-        self.scale = world.scenario.world_size / 2
+        self._setup(gs, deterministic, seed, decode)
+
+    def _setup(self, global_step, deterministic, seed, decode):
+        from .decoding import DECODERS
+        if decode not in DECODERS:
+            raise ValueError(f"decode: expected one of {list(DECODERS)}, got {decode!r}")
+        self.global_step, self.deterministic, self.seed = global_step, bool(deterministic), int(seed)
+        self.decode = decode
+        self.scale = self.world.scenario.world_size / 2
         self.generator = torch.Generator().manual_seed(self.seed)
         self.goals = None
 
     @classmethod
-    def from_nets(cls, world, nets: MASPNets, seed: int = 0, deterministic: bool = True) -> "MASPPolicy":
+    def from_nets(cls, world, nets: MASPNets, seed: int = 0, deterministic: bool = True,
+                  decode: str = "joint") -> "MASPPolicy":
         """A policy around networks in memory (used by training's periodic evaluation)."""
         self = cls.__new__(cls)
         self.world, self.nets, self.meta = world, nets, {}
-        self.global_step, self.deterministic, self.seed = nets.arch["global_step"], deterministic, int(seed)
-        self.scale = world.scenario.world_size / 2
-        self.generator = torch.Generator().manual_seed(self.seed)
-        self.goals = None
+        self._setup(nets.arch["global_step"], deterministic, seed, decode)
         return self
 
     def reset(self, obs) -> None:
@@ -311,6 +320,15 @@ class MASPPolicy:
         u = torch.rand(logits.shape, generator=self.generator).to(logits.device)
         return (logits - torch.log(-torch.log(u.clamp(1e-10, 1.0)))).argmax(-1)
 
+    def _goals(self, logits, alive, mask):
+        from .decoding import joint_argmax, sequential_sample
+        if self.decode == "independent":
+            return self._pick(logits)
+        if self.deterministic:
+            return joint_argmax(logits, alive, mask)
+        return sequential_sample(logits.cpu(), alive.cpu(), self.generator, None if mask is None else mask.cpu())[0] \
+            .to(logits.device)
+
     @torch.inference_mode()
     def act(self, obs) -> torch.Tensor:
         due = obs["t"] % self.global_step == 0
@@ -318,7 +336,7 @@ class MASPPolicy:
             mask = None
             if self.world.scenario.varying:  # landmarks already reached count for SR; pick among the rest
                 mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
-            new = self._pick(self.nets.gm_logits(obs, self.scale, mask))
+            new = self._goals(self.nets.gm_logits(obs, self.scale, mask), obs["alive"], mask)
             self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
         B, N = self.goals.shape
         perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(self.goals.device)
