@@ -234,3 +234,74 @@ def test_reset_of_one_episode_brings_its_crashed_drone_back():
     for _ in range(50):
         obs, info = w.step(a)
     assert info["alive"].all() and torch.allclose(obs["agent_pos"], start, atol=1e-5)
+
+
+def _run_both(actions, steps, **reset):
+    """One world (one MjData, mj_step) and two worlds (mujoco.batch) from the same start."""
+    one, two = (DroneWorld("drone-5", num_envs=b, seed=0, dtype=torch.float64) for b in (1, 2))
+    assert one.batch is None and two.batch is not None  # the two physics paths
+    out = []
+    for w in (one, two):
+        w.reset(options=reset)
+        rows = []
+        for k in range(steps):
+            if k == steps // 2:
+                w.reset(env_ids=[0], options=reset)  # a reset mid-run, of the first episode only
+            obs, info = w.step(actions.expand(w.num_envs, 5, 4))
+            rows.append({**{"obs_" + k: v.clone() for k, v in obs.items()}, **info})
+        out.append((w, rows))
+    return out
+
+
+def test_one_world_path_matches_the_batched_path_bit_for_bit():
+    pos = np.array([[-1.0, 0, 1.5], [-1.0 + 2 * COLLISION_RADIUS + 0.2, 0, 1.5], [2, 2, 1.5], [2, -2, 1.5], [-2, 2, 1.5]])
+    vel = np.zeros((5, 3)); vel[0, 0], vel[1, 0], vel[2, 2] = 2.0, -2.0, 0.3  # a crash, a climb
+    a = torch.full((1, 5, 4), HOVER, dtype=torch.float64)
+    a[0, 3, :2] = -0.3  # drone 3 tilts away and drifts
+    (one, rows1), (two, rows2) = _run_both(a, 60, agent_pos=pos, agent_vel=vel, landmark_pos=pos + 0.1)
+    assert sum(int(r["collisions"][0]) for r in rows1) >= 1  # the crash path ran
+    for step, (r1, r2) in enumerate(zip(rows1, rows2)):
+        for k, v in r1.items():  # episode 1 of the batch is not reset mid-run
+            assert torch.equal(v[0], r2[k][0]) and (step >= 30 or torch.equal(v[0], r2[k][1])), k
+    d1, d2 = one.get_data(0), two.get_data(0)
+    assert np.array_equal(d1.qpos, d2.qpos) and np.array_equal(d1.qvel, d2.qvel)
+    with pytest.raises(ValueError, match="env"):
+        one.get_data(1)
+
+
+def test_skipped_coverage_tests_give_the_exact_answer():
+    w = DroneWorld("drone-5", num_envs=2, seed=0, dtype=torch.float64)
+    pos = np.array([[-2.0, -2, 1.5], [-2, 0, 1.5], [-2, 2, 1.5], [1, -2, 1.5], [1, 1, 1.5]])
+    lms = pos + np.array([[0.5, 0, 0.1], [0.4, 0, -0.1], [0.6, 0.1, 0], [0.5, 0, 0], [-0.5, 0, 0.05]])
+    vel = np.zeros((5, 3)); vel[:, 0] = [0.4, 0.3, 0.5, 0.35, -0.3]  # gliding through their landmarks
+    w.reset(options={"agent_pos": pos, "agent_vel": vel, "landmark_pos": lms})
+    exact, check = [0], w._check_coverage
+
+    def counted(p):
+        exact[0] += 1
+        check(p)
+    w._check_coverage = counted
+    r2, seen = w.reach_distance ** 2, []
+    for _ in range(200):
+        obs, info = w.step(hover(w).double())
+        d = w.state[:, :, None, :3] - w.landmark_pos[:, None]
+        covered = ((np.einsum("bnlk,bnlk->bnl", d, d) <= r2) & w.alive[..., None]).any(axis=1)
+        assert np.array_equal(info["covered"].numpy(), covered)
+        seen.append(covered.sum())
+    assert max(seen) > 0 and seen[-1] == 0 and info["reached"].all()  # reached, then left behind
+    assert 0 < exact[0] < 200  # the test was skipped on some steps, run on others
+
+
+def test_observations_handed_out_are_never_written_afterwards():
+    w = make("drone-5", num_envs=1, seed=0)
+    pos = np.array([[0.0, 0, 1.5], [2, 0, 1.5], [-2, 0, 1.5], [0, 2, 1.5], [0, -2, 1.5]])
+    w.reset(options={"agent_pos": pos, "landmark_pos": pos + [0.5, 0, 0], "agent_vel": np.tile([0.5, 0, 0], (5, 1))})
+    a = hover(w)
+    a[0, 1] = -1.0  # drone 1 falls and crashes
+    kept = [w.step(a) for _ in range(80)]
+    copies = [({k: v.clone() for k, v in o.items()}, {k: v.clone() for k, v in i.items()}) for o, i in kept]
+    for _ in range(20):
+        w.step(a)
+    for (o, i), (oc, ic) in zip(kept, copies):
+        assert all(torch.equal(o[k], oc[k]) for k in o) and all(torch.equal(i[k], ic[k]) for k in i)
+    assert any(i["collisions"].item() for _, i in copies) and any(o["covered"].any() for o, _ in copies)

@@ -2,10 +2,12 @@
 
 Measures :class:`~masp_lite.envs.drones.DroneWorld` on ``drone-20`` for 1 and 16 parallel
 worlds, and, *in the same run*, plain ``mujoco.mj_step`` on the world's own ``MjModel``
-and start state: ``SUBSTEPS`` calls per environment step, one ``MjData`` per world, the same
-motor thrusts. The ratio ``raw rate / world rate`` is the world's overhead: everything it
-adds to the physics (action checks, the rotor lag, contact sensors recorded per substep,
-crash and coverage bookkeeping, torch observations). The target is ≤ 1.5×.
+and start state (``DroneWorld.get_data``, a copy): ``SUBSTEPS`` calls per environment
+step, one ``MjData`` per world, the same motor thrusts. (The world steps one world with
+``mj_step`` on its own ``MjData`` too, and several with ``mujoco.batch``.) The ratio
+``raw rate / world rate`` is the world's overhead: everything it adds to the physics
+(action checks, the rotor lag, contact sensors recorded per substep, crash and coverage
+bookkeeping, torch observations). The target is ≤ 1.5×.
 
 Workload: every drone hovers at the hover command (no crash, so every drone stays in the
 physics for the whole measurement and both sides simulate the same thing). A world that
@@ -50,7 +52,7 @@ def measure(num_envs: int, seconds: float, threads: int = 1, rounds: int = 5, se
         if bool(world.done.any()):
             world.reset()
 
-    datas = [world.batch.get_data(i) for i in range(num_envs)]
+    datas = [world.get_data(i) for i in range(num_envs)]
     model = world.model
     for d in datas:
         d.ctrl[:] = world._ctrl[0]

@@ -42,13 +42,40 @@ Choices (the paper leaves them open):
   at its own spot high above the map, so it touches nothing; its observed state stays the
   one it had when it left.
 
-Batching uses ``mujoco.batch.Batch`` (one model, ``num_envs`` state rows, stepped in C, on
-``threads`` threads — 1 by default); its ``rollout`` records the contact sensors after every
-substep. It was picked over a Python loop of ``mj_step`` on one ``MjData`` per world, which
-it matches or beats (the loop is the reference ``python -m masp_lite bench drones`` compares
-against), while keeping every world's state in one array. The bookkeeping here is a fixed
-cost per call, so its share of the step shrinks as worlds are batched. Internal state is
-numpy (float64, MuJoCo's); observations are torch tensors on ``device``.
+Physics. Several worlds (``num_envs`` > 1) are stepped by ``mujoco.batch.Batch`` (one
+model, ``num_envs`` state rows, stepped in C on ``threads`` threads, 1 by default); its
+``rollout`` records the contact sensors after every substep. It matches or beats a Python
+loop of ``mj_step`` over one ``MjData`` per world and keeps every world's state in one
+array. One world (``num_envs`` = 1, the PettingZoo face and ``bench drones``' first row)
+is one ``MjData`` stepped by ``mujoco.mj_step``, its sensors copied after each substep:
+the same computation (the batch's results are bit-identical to such a loop, and a test
+checks the two paths against each other), without the batch's per-call cost of loading
+and saving the state row and the Python around ``rollout`` (measured on ``drone-20``,
+one core: rollout ≈ 166 µs per control step, the direct loop ≈ 160, raw ``mj_step``
+≈ 156). One difference remains at the edge: a world whose MuJoCo warning counters rise
+(a diverging simulation) is frozen by the batch but left to ``mj_step``'s own handling
+(it resets the data) in the direct loop. :meth:`DroneWorld.get_data` copies a world's
+state out of either.
+
+Bookkeeping. The rest of a step is a fixed cost per call, so its share shrinks as worlds
+are batched; at one world it is what ``bench drones`` weighs against raw ``mj_step``
+(target ≤ 1.5×). Measured on ``drone-20``, hovering, 1 world: a step took ≈ 250 µs
+against 156 µs of raw physics (1.6×), ≈ 40 µs of it the coverage test and the tensors
+(each numpy or torch call costs several times its isolated time there, the caches being
+cold after four ``mj_step`` calls), so the step makes few calls: actions are checked and
+turned into thrusts in place in preallocated arrays; the crash test is one conservative
+comparison of ``|position|`` with the volume's bounds (the exact one runs only when it or
+a contact sensor fires); the observed state is one ``concatenate`` straight into the
+observation dtype; tensors of arrays that change only on events (landmarks, alive,
+collision counts, covered/reached, ``done`` before the horizon) are made once per event;
+and the coverage test is skipped while provably nothing is covered — after an exact test
+that found every alive drone at least ``gap`` beyond reach of every landmark, later steps
+skip it as long as no drone moved ``gap / √3`` or more along any axis (see
+``_check_coverage``); the answer is the same, bit for bit (a drone on or near a landmark
+keeps the exact test running every step). Result: ≈ 1.3× at one world. A tensor handed
+out is never written afterwards (the state ones are ``torch.from_numpy`` of new arrays
+every step), so a caller may keep observations. Internal state is numpy (float64,
+MuJoCo's); observations are torch tensors on ``device``.
 """
 from __future__ import annotations
 
@@ -68,6 +95,7 @@ CEILING = 3.0
 LANDMARK_HEIGHTS = (1.0, 2.0)
 _GAP = 0.05
 _PARK_HEIGHT = 100.0
+_EVENT_KEYS = ("alive", "landmark_pos", "collisions", "agent_collisions", "covered", "reached", "not_done")
 _OPTIONS = {"agent_pos": 3, "agent_vel": 3, "agent_quat": 4, "agent_angvel": 3, "landmark_pos": 3}
 
 
@@ -97,9 +125,14 @@ class DroneWorld:
             raise ValueError(f"world_size: expected at least {2 * (COLLISION_RADIUS + _GAP):g} m for drones")
         self._rng = np.random.default_rng(seed)
         self.model = build_model(self.num_agents)
-        self.batch = mujoco.batch.Batch(self.model, self.num_envs, nthread=int(threads))
         B, N = self.num_envs, self.num_agents
-        self._qpos, self._qvel, self._ctrl = (self.batch.bind(k) for k in ("qpos", "qvel", "ctrl"))
+        if B == 1:  # one world: one MjData stepped by mj_step (see the module docstring)
+            self.batch, self._data = None, mujoco.MjData(self.model)
+            self._qpos, self._qvel, self._ctrl = self._data.qpos[None], self._data.qvel[None], self._data.ctrl[None]
+            self._sensordata = self._data.sensordata  # a view: the live sensor values of the MjData
+        else:
+            self.batch, self._data = mujoco.batch.Batch(self.model, B, nthread=int(threads)), None
+            self._qpos, self._qvel, self._ctrl = (self.batch.bind(k) for k in ("qpos", "qvel", "ctrl"))
         self._park = np.zeros((N, 7))
         self._park[:, 0], self._park[:, 2], self._park[:, 3] = 3 * COLLISION_RADIUS * np.arange(N), _PARK_HEIGHT, 1
         self.throttle = np.zeros((B, N, 4))
@@ -107,16 +140,27 @@ class DroneWorld:
         self.alive = np.ones((B, N), bool)
         self._keep = np.ones((B, N), bool)
         self.t = np.zeros(B, np.int64)
+        self._t_max = 0  # self.t.max(), kept as an int
         self.reached = np.zeros((B, N), bool)
         self.landmark_pos = np.zeros((B, N, 3))
         self.collisions = np.zeros(B, np.int64)
         self.agent_collisions = np.zeros((B, N), np.int64)
         self._rec = {"sensordata": np.zeros((B, SUBSTEPS, self.model.nsensordata))}
-        self._q3, self._v3 = self._qpos.reshape(B, N, 7), self._qvel.reshape(B, N, 6)  # views of the state rows
-        assert np.shares_memory(self._q3, self._qpos) and np.shares_memory(self._v3, self._qvel)
+        # views of the state rows (or of the MjData) and scratch arrays that step() reuses
+        self._q3, self._v3 = self._qpos.reshape(B, N, 7), self._qvel.reshape(B, N, 6)
+        self._ctrl3 = self._ctrl.reshape(B, N, 4)
+        for view, owner in ((self._q3, self._qpos), (self._v3, self._qvel), (self._ctrl3, self._ctrl)):
+            assert np.shares_memory(view, owner)
+        self._pos = self._q3[..., :3]
+        self._cmd = np.zeros((B, N, 4))
+        self._pos_abs, self._outside = np.zeros((B, N, 3)), np.zeros((B, N, 3), bool)
+        self._limits = np.array([half, half, CEILING])
         self._no_obstacles = torch.zeros(B, 0, 3, dtype=dtype, device=self.device)
-        self._held = {}  # name -> (array, its tensor): see _same
+        self._events = {}  # tensors of the arrays that change only on events: see _event_tensors
+        self._np_dtype = np.float32 if dtype == torch.float32 else np.float64
+        self._ref_pos, self._skin = None, 0.0  # see _check_coverage
         self._everyone = True  # every drone of every episode is still flying
+        self._no_counts = True  # collisions and agent_collisions are all zero
         self.reset()
 
     # ------------------------------------------------------------------ reset
@@ -148,10 +192,16 @@ class DroneWorld:
         q = np.concatenate([pos, quat / norm], axis=-1)
         v = np.concatenate([given.get("agent_vel", np.zeros((n, N, 3))),
                             given.get("agent_angvel", np.zeros((n, N, 3)))], axis=-1)
-        self.batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        if self._data is None:
+            self.batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        elif n:
+            mujoco.mj_resetData(self.model, self._data)  # what Batch.reset does to a state row
         self._qpos[ids] = q.reshape(n, -1)
         self._qvel[ids] = v.reshape(n, -1)
-        self.batch.forward(ids)
+        if self._data is None:
+            self.batch.forward(ids)
+        elif n:
+            mujoco.mj_forward(self.model, self._data)
         self.throttle = self.throttle.copy()
         self.throttle[ids] = np.sqrt((HOVER_COMMAND + 1) / 2)
         self._ctrl[ids] = np.square(self.throttle[ids]).reshape(n, -1) * MAX_THRUST
@@ -164,9 +214,13 @@ class DroneWorld:
         self.t, self.reached = self.t.copy(), self.reached.copy()
         self.collisions, self.agent_collisions = self.collisions.copy(), self.agent_collisions.copy()
         self.t[ids] = 0
+        self._t_max = int(self.t.max())
         self.reached[ids] = False
         self.collisions[ids] = 0
         self.agent_collisions[ids] = 0
+        self._no_counts = not self.collisions.any()  # every count is zero
+        self._events.clear()
+        self._ref_pos = None  # drones and landmarks moved: the next coverage test is exact
         self._update_coverage()
         return self.observe()
 
@@ -224,24 +278,33 @@ class DroneWorld:
     # ------------------------------------------------------------------- step
     def step(self, actions) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
         """Advance every episode by one control step (``SUBSTEPS`` MuJoCo steps)."""
-        cmd = self._check_actions(actions)
-        if self.t.max() >= self.horizon:
+        x = self._check_actions(actions)  # the commands, in the scratch array self._cmd
+        if self._t_max >= self.horizon:
             raise ValueError(f"episode over (horizon {self.horizon} reached); expected reset() before step()")
         B, N, alive, everyone = self.num_envs, self.num_agents, self.alive, self._everyone
         # rotor model: target throttle sqrt((c+1)/2), first-order lag, thrust = throttle² f_max
-        throttle = self.throttle + HUMMINGBIRD["rotor_lag"] * (np.sqrt((cmd + 1) * 0.5) - self.throttle)
+        x += 1.0
+        x *= 0.5
+        np.sqrt(x, out=x)
+        x -= self.throttle
+        x *= HUMMINGBIRD["rotor_lag"]
+        self.throttle = throttle = x + self.throttle
         if not everyone:
             throttle *= alive[..., None]
             gone = ~alive  # park whoever left: zero velocity, own spot far above the map
             self._q3[gone] = np.broadcast_to(self._park, (B, N, 7))[gone]
             self._v3[gone] = 0.0
-        self.throttle = throttle
-        self._ctrl[:] = (throttle * throttle * MAX_THRUST).reshape(B, -1)
-        rec = self.batch.rollout(SUBSTEPS, record=("sensordata",), out=self._rec)["sensordata"]
-        pos, half = self._q3[..., :3], self.scenario.world_size / 2
+        np.multiply(throttle, throttle, out=self._ctrl3)
+        self._ctrl3 *= MAX_THRUST
+        rec = self._physics()
         self.t = self.t + 1
+        self._t_max += 1
         leaving = None
-        if rec.any() or np.abs(pos[..., :2]).max() > half or pos[..., 2].max() > CEILING:
+        # crashes: a contact sensor fired, or a drone is out of the volume (a conservative test
+        # on |position| first; parked drones fail it, so the exact test runs once one has left)
+        np.greater(np.abs(self._pos, out=self._pos_abs), self._limits, out=self._outside)
+        if rec.any() or self._outside.any():
+            pos, half = self._pos, self.scenario.world_size / 2
             sens = rec.max(axis=1)  # contacts (B, 2N): [any, floor] per drone, max over substeps
             out = (np.abs(pos[..., :2]) > half).any(-1) | (pos[..., 2] > CEILING)
             touch_any, touch_floor = sens[:, 0::2], sens[:, 1::2]
@@ -249,25 +312,44 @@ class DroneWorld:
             self.agent_collisions = ((drone_contacts + touch_floor + out) * alive).astype(np.int64)
             self.collisions = (np.rint(drone_contacts.sum(1) / 2)
                                + ((touch_floor + out) * alive).sum(1)).astype(np.int64)
+            self._events.pop("collisions", None)
+            self._no_counts = False
             leaving = alive & (self.agent_collisions > 0)
-        elif self.collisions.any():
+        elif not self._no_counts:  # counts of an earlier step: zero them
             self.collisions, self.agent_collisions = np.zeros(B, np.int64), np.zeros((B, N), np.int64)
+            self._events.pop("collisions", None)
+            self._no_counts = True
         if self.scenario.varying and (self.t == self.scenario.change_step).any():
             drop = alive & ~self._keep & (self.t == self.scenario.change_step)[:, None]
             leaving = drop if leaving is None else leaving | drop
         if leaving is not None and leaving.any():
             self._frozen[leaving] = self._state()[leaving]
             self.alive = alive & ~leaving
+            self._events.pop("alive", None)
             self._everyone = False
         self._update_coverage()
         return self.observe(), self.info()
 
+    def _physics(self) -> np.ndarray:
+        """Run ``SUBSTEPS`` MuJoCo steps of every world; the contact sensors after each, (B, SUBSTEPS, 2N)."""
+        rec = self._rec["sensordata"]
+        if self._data is None:
+            return self.batch.rollout(SUBSTEPS, record=("sensordata",), out=self._rec)["sensordata"]
+        model, data, sensors, row = self.model, self._data, self._sensordata, rec[0]
+        for k in range(SUBSTEPS):
+            mujoco.mj_step(model, data)
+            row[k] = sensors
+        return rec
+
     def _check_actions(self, actions) -> np.ndarray:
+        """Validate ``actions``; return them as float64 in the scratch array ``self._cmd``."""
         B, N = self.num_envs, self.num_agents
         if torch.is_tensor(actions):
             if not actions.dtype.is_floating_point:
                 raise ValueError(f"actions: expected a float tensor of motor commands, got dtype {actions.dtype}")
-            actions = (actions.detach() if actions.requires_grad else actions).cpu().numpy()
+            if actions.requires_grad:
+                actions = actions.detach()
+            actions = (actions if actions.device.type == "cpu" else actions.cpu()).numpy()
         elif isinstance(actions, np.ndarray):
             if not np.issubdtype(actions.dtype, np.floating):
                 raise ValueError(f"actions: expected a float array of motor commands, got dtype {actions.dtype}")
@@ -275,7 +357,8 @@ class DroneWorld:
             raise ValueError(f"actions: expected a float tensor of shape ({B}, {N}, 4), got {type(actions).__name__}")
         if actions.shape != (B, N, 4):
             raise ValueError(f"actions: expected shape (num_envs, num_agents, 4) = ({B}, {N}, 4), got {actions.shape}")
-        a = actions.astype(np.float64, copy=False)
+        a = self._cmd
+        a[...] = actions  # float64, as MuJoCo computes
         if not np.abs(a).max() <= 1.0:  # one reduction in the common case; NaN fails it too
             if not np.isfinite(a).all():
                 raise ValueError("actions: expected finite motor commands, got NaN or inf")
@@ -284,43 +367,99 @@ class DroneWorld:
         return a
 
     def _state(self) -> np.ndarray:
-        """(B, N, 13): position, quaternion (w x y z), linear velocity, body angular velocity."""
-        B, N = self.num_envs, self.num_agents
-        return np.concatenate([self._qpos.reshape(B, N, 7), self._qvel.reshape(B, N, 6)], axis=-1)
+        """(B, N, 13) of the physics: position, quaternion (w x y z), linear velocity, body angular velocity."""
+        return np.concatenate([self._q3, self._v3], axis=-1)
+
+    @property
+    def state(self) -> np.ndarray:
+        """(B, N, 13) as observed: the physics state, or where a drone left the one it had then."""
+        s = self._state()
+        return s if self._everyone else np.where(self.alive[..., None], s, self._frozen)
 
     def _update_coverage(self):
         """Covered/reached landmarks, then the tensors that ``observe`` and ``info`` hand out."""
-        st = np.concatenate([self._q3, self._v3, self.throttle], -1)
-        if not self._everyone:
-            st[..., :13] = np.where(self.alive[..., None], st[..., :13], self._frozen)
-        self.state = s = st[..., :13]
-        diff = s[:, :, None, :3] - self.landmark_pos[:, None]                        # (B, N, L, 3)
-        near = np.einsum("bnlk,bnlk->bnl", diff, diff) <= self.reach_distance ** 2
-        self.covered = (near if self._everyone else near & self.alive[..., None]).any(axis=1)
-        self.reached = self.reached | self.covered
+        # the observed state, in the observation dtype: [pos, quat, vel, angvel, throttle]
+        if self._everyone:
+            pos = self._pos
+            st = np.concatenate([self._q3, self._v3, self.throttle], axis=-1, dtype=self._np_dtype, casting="same_kind")
+        else:
+            s = self.state
+            pos = s[..., :3]
+            st = np.concatenate([s, self.throttle], axis=-1, dtype=self._np_dtype, casting="same_kind")
+        # no drone has moved far enough since the last exact test to reach a landmark: covered
+        # stays all False and reached as it is (see _check_coverage)
+        if self._ref_pos is None or not np.abs(pos - self._ref_pos).max() < self._skin:
+            self._check_coverage(pos)
+            self._events.pop("covered", None)
+        ev = self._events if len(self._events) == len(_EVENT_KEYS) else self._event_tensors()
         # numpy slices wrapped by torch.from_numpy: cheaper than slicing tensors. Every array
         # handed out here is replaced, never written in place, afterwards (reset copies first),
-        # so arrays that change only on events (landmarks, alive, contacts) keep their tensors.
-        if self.dtype == torch.float32:
-            st = st.astype(np.float32)
-        T, same = (torch.from_numpy if self.device.type == "cpu" else self._tensor), self._same
-        alive, covered, reached, t = same("alive"), T(self.covered), T(self.reached), T(self.t)
+        # so arrays that change only on events keep their tensors (see _event_tensors).
+        T = torch.from_numpy if self.device.type == "cpu" else self._tensor
+        alive, covered, reached, t = ev["alive"], ev["covered"], ev["reached"], T(self.t)
         self._obs = {"agent_pos": T(st[..., :3]), "agent_vel": T(st[..., 7:10]), "agent_quat": T(st[..., 3:7]),
                      "agent_angvel": T(st[..., 10:13]), "throttle": T(st[..., 13:17]),
-                     "landmark_pos": same("landmark_pos"), "obstacle_pos": self._no_obstacles, "alive": alive,
+                     "landmark_pos": ev["landmark_pos"], "obstacle_pos": self._no_obstacles, "alive": alive,
                      "covered": covered, "reached": reached, "t": t}
-        self._info = {"covered": covered, "reached": reached, "collisions": same("collisions"),
-                      "agent_collisions": same("agent_collisions"), "alive": alive,
-                      "done": T(self.t >= self.horizon), "t": t}
+        self._info = {"covered": covered, "reached": reached, "collisions": ev["collisions"],
+                      "agent_collisions": ev["agent_collisions"], "alive": alive,
+                      "done": ev["not_done"] if self._t_max < self.horizon else T(self.t >= self.horizon), "t": t}
 
-    def _same(self, name: str) -> torch.Tensor:
-        """The tensor of array attribute ``name``, rebuilt only when the array was replaced."""
-        arr = getattr(self, name)
-        held = self._held.get(name)
-        if held is None or held[0] is not arr:
-            a = arr.astype(np.float32) if arr.dtype == np.float64 and self.dtype == torch.float32 else arr
-            held = self._held[name] = (arr, self._tensor(a))
-        return held[1]
+    def _check_coverage(self, pos: np.ndarray):
+        """The exact test: ``covered``, ``reached``, and the skin that lets later steps skip it.
+
+        A landmark is covered when an alive drone's squared centre distance is at most
+        ``reach_distance²``. With ``gap`` the smallest ``distance − reach_distance`` over
+        alive drones and landmarks, the skin is ``gap / √3`` less 1 µm (far above float64's
+        rounding here): while no drone has moved by the skin or more along any axis since
+        this test, every distance has shrunk by less than ``gap − 1 µm``, so none is within
+        reach and this test would find nothing covered; ``_update_coverage`` skips it then.
+        """
+        diff = pos[:, :, None] - self.landmark_pos[:, None]                        # (B, N, L, 3)
+        d2 = np.einsum("bnlk,bnlk->bnl", diff, diff)
+        if not self._everyone:
+            d2 = np.where(self.alive[..., None], d2, np.inf)
+        self.covered = (d2 <= self.reach_distance ** 2).any(axis=1)
+        self.reached = self.reached | self.covered
+        gap = np.sqrt(d2.min()) - self.reach_distance
+        if gap > 0 and np.isfinite(gap):
+            self._ref_pos, self._skin = pos.copy(), gap / np.sqrt(3) - 1e-6
+        else:
+            self._ref_pos = None
+
+    def _event_tensors(self) -> dict[str, torch.Tensor]:
+        """Tensors of the arrays that change only on events, made again for those dropped from ``_events``.
+
+        ``reset`` clears ``_events``; ``step`` drops ``alive`` when drones leave and
+        ``collisions`` (standing for both counts) when it replaces the counts, the exact
+        coverage test ``covered`` (standing for ``covered`` and ``reached``)."""
+        ev, f32 = self._events, self.dtype == torch.float32
+        if "alive" not in ev:
+            ev["alive"] = self._tensor(self.alive)
+        if "landmark_pos" not in ev:
+            ev["landmark_pos"] = self._tensor(self.landmark_pos.astype(np.float32) if f32 else self.landmark_pos)
+        if "collisions" not in ev:
+            ev["collisions"] = self._tensor(self.collisions)
+            ev["agent_collisions"] = self._tensor(self.agent_collisions)
+        if "covered" not in ev:  # standing for covered and reached
+            ev["covered"], ev["reached"] = self._tensor(self.covered), self._tensor(self.reached)
+        if "not_done" not in ev:
+            ev["not_done"] = self._tensor(np.zeros(self.num_envs, bool))
+        return ev
+
+    def get_data(self, env: int = 0) -> mujoco.MjData:
+        """A new ``MjData`` of ``self.model`` holding episode ``env``'s physics state (run
+        ``mj_forward`` on it for the derived quantities); stepping it leaves the world alone."""
+        if not 0 <= env < self.num_envs:
+            raise ValueError(f"env: expected an index in [0, {self.num_envs}), got {env}")
+        if self._data is None:
+            return self.batch.get_data(int(env))
+        data = mujoco.MjData(self.model)
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.empty(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, self._data, state, spec)
+        mujoco.mj_setState(self.model, data, state, spec)
+        return data
 
     def _tensor(self, a: np.ndarray) -> torch.Tensor:
         t = torch.from_numpy(a)
@@ -332,7 +471,8 @@ class DroneWorld:
         return self._info["done"]
 
     def observe(self) -> dict[str, torch.Tensor]:
-        """The observation dict (see the module docstring); tensors are fresh every step."""
+        """The observation dict (see the module docstring), a new dict; its tensors are never
+        written in place afterwards (those of event-driven arrays are shared between steps)."""
         return dict(self._obs)
 
     def info(self) -> dict[str, torch.Tensor]:
