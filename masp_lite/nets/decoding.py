@@ -3,9 +3,11 @@
 The paper's Goal Matcher gives every agent ``k`` a categorical ``S_intra^k`` over the goals
 (eq. 4) and says agent ``k`` "selects the goal with the highest matching score"; ``R_GM``
 (eq. 1) punishes two agents choosing one goal. Read literally, each agent decides alone
-(:func:`independent_goals`). Measured on ``mpe-20`` with our first trained Goal Matcher,
-independent argmax left several agents on one landmark: SR 0.59, against 0.98 for the
-same networks decoded without conflicts. We therefore decode **conflict-free** by
+(:func:`independent_goals`). Measured on ``mpe-20`` (evaluation seed 0, 100 episodes):
+a Goal Matcher trained with independent sampling left several agents on one landmark,
+SR 0.59, against 0.98 for the same networks decoded without conflicts; the shipped
+weights (trained with the sequential draw below) score SR 0.68 decoded independently and
+1.00 conflict-free. We therefore decode **conflict-free** by
 default, a choice the paper leaves open (it never states how ties between agents are
 broken), and keep the literal rule as ``decode="independent"`` for comparison:
 
