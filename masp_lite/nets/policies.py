@@ -152,7 +152,9 @@ class GoalMatcher(_GraphEncoders):
     """High-level actor: ``forward(agent_x, goal_x, dist, alive) -> logits`` (B, N, M).
 
     Agent ``k``'s categorical over goals is ``softmax(logits[:, k])`` = ``S_intra^k``
-    (eq. 4); at evaluation agent ``k`` takes the goal of highest matching score.
+    (eq. 4). :mod:`masp_lite.nets.decoding` turns the scores into goals: by default the
+    most likely assignment of distinct goals at evaluation, a sequential draw of distinct
+    goals in training.
     """
 
     def __init__(self, width: int = 32):
