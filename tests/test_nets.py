@@ -207,3 +207,20 @@ def test_policy_is_seeded_and_respects_dead_agents(tmp_path):
             obs, _ = w.step(a)
         runs.append(torch.stack(acts))
     assert torch.equal(runs[0], runs[1])
+
+
+def test_linear_relu_matches_torch_in_value_and_gradients():
+    from masp_lite.nets.fusion import linear_relu
+    torch.manual_seed(3)
+    x = torch.randn(4, 7, 6, dtype=torch.float64, requires_grad=True)
+    w = torch.randn(5, 6, dtype=torch.float64, requires_grad=True)
+    b = torch.randn(5, dtype=torch.float64, requires_grad=True)
+    out = linear_relu(x, w, b)
+    ref = torch.relu(torch.nn.functional.linear(x, w, b))
+    torch.testing.assert_close(out, ref)
+    g = torch.randn_like(ref)
+    mine = torch.autograd.grad(out, (x, w, b), g)
+    theirs = torch.autograd.grad(ref, (x, w, b), g)
+    for a, c in zip(mine, theirs):
+        torch.testing.assert_close(a, c)
+    assert torch.autograd.gradcheck(linear_relu, (x, w, b))
