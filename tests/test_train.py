@@ -98,6 +98,10 @@ def test_parse_config_and_cli_errors(tmp_path, capsys):
         parse_config(["bogus=1"])
     with pytest.raises(ValueError, match="expected a int"):
         parse_config(["updates=many"])
+    assert parse_config(["train_executor=False"])[0].train_executor is False
+    assert parse_config(["train_executor=true"])[0].train_executor is True
+    with pytest.raises(ValueError, match="expected a bool"):
+        parse_config(["train_executor=0"])
     assert main(["train", "--method", "nope", "--scenario", "mpe-5", "--out", str(tmp_path / "x")]) == 2
     assert "unknown method" in capsys.readouterr().err
     assert main(["train", "--scenario", "mpe-5", "--out", str(tmp_path / "y"), "--resume", "--quiet"]) == 2
@@ -129,3 +133,22 @@ def test_shipped_file_that_differs_from_manifest_is_refused(tmp_path, monkeypatc
         load_weights(None, scenario="mpe-5")
     with pytest.raises(ValueError, match="no shipped weights"):
         load_weights(None, scenario="mpe-20")
+
+
+def test_goal_matcher_only_fine_tuning_leaves_the_executor_untouched(tmp_path):
+    from masp_lite.algos.masp_trainer import MASPTrainer
+    cfg = MAPPOConfig(**{**TINY, "train_executor": False})
+    t = MASPTrainer("mpe-5", cfg, seed=1)
+    before = {k: v.clone() for k, v in t.nets.state_dict().items()}
+    norm_before = {k: v.clone() for k, v in t.cae_norm.state_dict().items()}
+    row = t.iteration()
+    after = t.nets.state_dict()
+    frozen = [k for k in before if k.startswith(("cae.", "cae_critic."))]
+    trained = [k for k in before if k.startswith(("gm.", "gm_critic."))]
+    assert frozen and trained
+    assert all(torch.equal(before[k], after[k]) for k in frozen)
+    assert any(not torch.equal(before[k], after[k]) for k in trained)
+    assert all(torch.equal(v, t.cae_norm.state_dict()[k]) for k, v in norm_before.items())
+    assert row["cae_policy_loss"] != row["cae_policy_loss"] and row["gm_policy_loss"] == row["gm_policy_loss"]
+    with pytest.raises(ValueError, match="train_executor"):
+        MAPPOConfig(train_executor="no")

@@ -82,6 +82,10 @@ class MAPPOConfig:
     """How training samples goals from the Goal Matcher (:mod:`masp_lite.nets.decoding`):
     ``joint`` draws distinct goals agent by agent in a random order; ``independent`` lets
     every agent sample alone (duplicates allowed, the paper's literal wording)."""
+    train_executor: bool = True
+    """Update the executor and its critic; ``False`` freezes them and trains only the Goal
+    Matcher (a cheap fine-tuning stage on a larger team: the executor's PPO update, which
+    dominates an iteration, is skipped; its actions are still sampled as in training)."""
     eval_every: int = 10
     """Updates between evaluations (0: only at the end)."""
     eval_episodes: int = 32
@@ -101,6 +105,8 @@ class MAPPOConfig:
         for name in ("gamma", "gae_lambda", "gm_gamma"):
             if not 0.0 <= float(getattr(self, name)) <= 1.0:
                 raise ValueError(f"{name}: expected a number in [0, 1], got {getattr(self, name)!r}")
+        if not isinstance(self.train_executor, bool):
+            raise ValueError(f"train_executor: expected True or False, got {self.train_executor!r}")
         if self.gm_decode not in ("joint", "independent"):
             raise ValueError(f"gm_decode: expected 'joint' or 'independent', got {self.gm_decode!r}")
         for name in ("lr", "clip", "huber_delta", "max_grad_norm"):

@@ -20,7 +20,8 @@ Per environment step ``t`` of a rollout (all worlds and agents at once, under
 A rollout is one full episode (horizon steps), so both levels bootstrap from 0 at the
 end; the critics see the time left. GAE runs per level on its own time axis (global
 steps for the Goal Matcher), then :func:`~masp_lite.algos.mappo.ppo_update` trains each
-level.
+level (only the Goal Matcher when ``train_executor`` is off: a fine-tuning stage that
+leaves the executor, its critic and its value normalisation untouched).
 """
 from __future__ import annotations
 
@@ -108,13 +109,14 @@ class MASPTrainer:
         stats = {"sr": float(obs["covered"].float().mean()), "steps": float(first.float().mean()),
                  "cr": float(torch.stack(col, 1).float().mean())}
         return self._advantages(gm.stacked(), self.gm_norm, cfg.gm_gamma), \
-            self._advantages(cae.stacked(), self.cae_norm, cfg.gamma), stats
+            self._advantages(cae.stacked(), self.cae_norm, cfg.gamma, update=cfg.train_executor), stats
 
-    def _advantages(self, data, norm: ValueNorm, gamma: float):
+    def _advantages(self, data, norm: ValueNorm, gamma: float, update: bool = True):
         values = norm.denormalize(data["values"])
         adv, ret = gae(data["rewards"], values, torch.zeros_like(values[0]), gamma, self.cfg.gae_lambda)
         data["advantages"], data["returns"] = adv, ret
-        norm.update(ret, data["mask"])
+        if update:  # a frozen level keeps its value normalisation too
+            norm.update(ret, data["mask"])
         data["reward_mean"] = data["rewards"]
         return data
 
@@ -139,8 +141,11 @@ class MASPTrainer:
         n, cfg = self.nets, self.cfg
         s_gm = ppo_update(gm_data, self._gm_eval, n.gm, n.gm_critic, self.gm_opt, cfg, self.gm_norm, self.generator,
                           epochs=cfg.gm_ppo_epochs)
-        s_cae = ppo_update(cae_data, self._cae_eval, n.cae, n.cae_critic, self.cae_opt, cfg, self.cae_norm,
-                           self.generator)
+        if cfg.train_executor:
+            s_cae = ppo_update(cae_data, self._cae_eval, n.cae, n.cae_critic, self.cae_opt, cfg, self.cae_norm,
+                               self.generator)
+        else:  # executor frozen (Goal Matcher fine-tuning): nothing to report
+            s_cae = {"policy_loss": float("nan"), "value_loss": float("nan"), "entropy": float("nan")}
         self.iterations += 1
         row = {"iteration": self.iterations, "env_steps": self.env_steps, **{f"train_{k}": v for k, v in stats.items()},
                "gm_reward": r_gm, "cae_reward": r_cae}

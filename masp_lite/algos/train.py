@@ -62,7 +62,12 @@ def parse_config(sets) -> tuple[MAPPOConfig, dict]:
         if key in fields:
             typ = fields[key].type if isinstance(fields[key].type, type) else eval(fields[key].type)  # noqa: S307
             try:
-                cfg[key] = typ(float(text)) if typ is int and float(text).is_integer() else typ(text)
+                if typ is bool:  # bool("False") is True: read the word
+                    if text.lower() not in ("true", "false"):
+                        raise ValueError(text)
+                    cfg[key] = text.lower() == "true"
+                else:
+                    cfg[key] = typ(float(text)) if typ is int and float(text).is_integer() else typ(text)
             except ValueError:
                 raise ValueError(f"--set {key}={text!r}: expected a {typ.__name__}") from None
         elif key in OVERRIDES:
