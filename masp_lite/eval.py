@@ -45,7 +45,7 @@ import torch
 
 from .tables import format_table  # noqa: F401  (re-exported: tables of evaluate() records)
 
-__all__ = ["EpisodeLog", "success_rate", "steps", "collision_rate", "reached_target", "rollout",
+__all__ = ["EpisodeLog", "success_rate", "steps", "collision_rate", "reached_target", "rollout", "contact_breakdown",
            "evaluate", "build_policy", "format_table", "parse_sets", "parse_value", "MAX_ENVS",
            "add_arguments", "run"]
 
@@ -186,6 +186,50 @@ def rollout(world, policy, episodes: int, seed: int | None = None):
     """
     log, timings = _rollout(world, policy, episodes, seed)
     return log, float(timings.mean())
+
+
+CONTACT_KINDS = ("agent-agent, both on landmarks", "agent-agent, en route", "agent-obstacle, on a landmark",
+                 "agent-obstacle, en route")
+"""The four parts of CR that :func:`contact_breakdown` reports."""
+
+
+def contact_breakdown(world, policy, episodes: int, seed: int | None = None) -> dict[str, float]:
+    """Where a policy's contacts happen on a particle world: CR split four ways.
+
+    Runs ``episodes`` episodes as :func:`rollout` does (same seed, same episodes) and
+    counts every contact after every step, as CR does. An agent is *on a landmark* when
+    it is within reach of any landmark after the step. An agent–agent contact is "both on
+    landmarks" when both agents are, else "en route"; an agent–obstacle contact is "on a
+    landmark" when the agent is. Returns the mean contacts per step of each kind
+    (:data:`CONTACT_KINDS`) and their sum under ``"total"``, which equals the mean CR.
+    """
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes: expected a positive int, got {episodes!r}")
+    sc = world.scenario
+    if sc.kind != "particle":
+        raise ValueError(f"contact_breakdown: expected a particle world, got scenario {sc.name!r}")
+    B, T = world.num_envs, world.horizon
+    sums = torch.zeros(len(CONTACT_KINDS), dtype=torch.float64)
+    done_eps, first = 0, True
+    while done_eps < episodes:
+        obs = world.reset(seed=seed if first else None)
+        first = False
+        policy.reset(obs)
+        keep = min(B, episodes - done_eps)
+        for _ in range(T):
+            obs, _ = world.step(policy.act(obs))
+            pos, alive = obs["agent_pos"][:keep], obs["alive"][:keep]
+            on = (torch.cdist(pos, obs["landmark_pos"][:keep]) <= sc.reach_distance).any(-1) & alive
+            aa = torch.triu(torch.cdist(pos, pos) < 2 * sc.agent_radius, diagonal=1)
+            aa &= alive.unsqueeze(2) & alive.unsqueeze(1)
+            both = on.unsqueeze(2) & on.unsqueeze(1)
+            ao = (torch.cdist(pos, obs["obstacle_pos"][:keep]) < sc.agent_radius + sc.obstacle_radius)
+            ao &= alive.unsqueeze(2)
+            sums += torch.stack([(aa & both).sum(), (aa & ~both).sum(), (ao & on.unsqueeze(2)).sum(),
+                                 (ao & ~on.unsqueeze(2)).sum()]).double()
+        done_eps += keep
+    parts = {k: float(v) / (episodes * T) for k, v in zip(CONTACT_KINDS, sums)}
+    return {**parts, "total": float(sums.sum()) / (episodes * T)}
 
 
 # --------------------------------------------------------------------------- evaluation

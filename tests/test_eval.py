@@ -6,8 +6,8 @@ import pytest
 import torch
 
 from masp_lite.envs import make
-from masp_lite.eval import (EpisodeLog, collision_rate, evaluate, format_table, parse_value,
-                            rollout, steps, success_rate)
+from masp_lite.eval import (CONTACT_KINDS, EpisodeLog, collision_rate, contact_breakdown, evaluate,
+                            format_table, parse_value, rollout, steps, success_rate)
 from masp_lite.methods.reference import RandomPolicy
 
 
@@ -68,6 +68,40 @@ def test_rollout_matches_world_and_is_deterministic():
     assert torch.equal(log.covered, log2.covered) and torch.equal(log.collisions, log2.collisions)
     # the log replays the world: the last batch's final coverage is the world's
     assert torch.equal(log.covered[4:, -1], world.covered[:2])
+
+
+def test_contact_breakdown_adds_up_to_cr_on_the_same_episodes():
+    # a crowded map, so that every kind of contact happens; 6 episodes in batches of 4
+    kw = dict(num_envs=4, seed=0, horizon=12, num_agents=8, num_obstacles=8, world_size=2.2)
+    w1, w2 = make("mpe-5", **kw), make("mpe-5", **kw)
+    log, _ = rollout(w1, RandomPolicy(w1, seed=1), episodes=6, seed=2)
+    parts = contact_breakdown(w2, RandomPolicy(w2, seed=1), episodes=6, seed=2)
+    assert set(parts) == {*CONTACT_KINDS, "total"}
+    assert parts["total"] == pytest.approx(float(collision_rate(log).mean()), abs=1e-12)
+    assert sum(parts[k] for k in CONTACT_KINDS) == pytest.approx(parts["total"])
+    assert parts[CONTACT_KINDS[1]] > 0 and parts[CONTACT_KINDS[3]] > 0, parts  # contacts did happen
+    with pytest.raises(ValueError, match="particle"):
+        contact_breakdown(make("drone-5", num_envs=1), RandomPolicy(w1), episodes=1)
+
+
+def test_contact_breakdown_on_landmark_or_en_route():
+    w = make("mpe-5", num_envs=1, seed=0, num_agents=3, num_obstacles=1, horizon=1)
+
+    class Still:
+        def reset(self, obs):
+            pass
+
+        def act(self, obs):
+            return torch.zeros(1, 3, dtype=torch.long)
+
+    # after one step agents 0 and 1 touch, both on their landmarks; agent 2 touches the obstacle
+    # away from any landmark (they start 0.21 m apart and drift 0.01-0.02 m closer)
+    w.reset = lambda seed=None, _r=w.reset: _r(options={
+        "agent_pos": [[0.0, 0.0], [0.21, 0.0], [-0.8, -0.8]], "landmark_pos": [[0.0, 0.05], [0.21, 0.05], [0.8, 0.8]],
+        "obstacle_pos": [[-0.8, -0.59]], "agent_vel": [[0.1, 0.0], [-0.1, 0.0], [0.0, 0.2]]})
+    parts = contact_breakdown(w, Still(), episodes=1)
+    assert parts == {CONTACT_KINDS[0]: 1.0, CONTACT_KINDS[1]: 0.0, CONTACT_KINDS[2]: 0.0, CONTACT_KINDS[3]: 1.0,
+                     "total": 2.0}
 
 
 def test_evaluate_record_and_table():
