@@ -152,3 +152,28 @@ def test_goal_matcher_only_fine_tuning_leaves_the_executor_untouched(tmp_path):
     assert row["cae_policy_loss"] != row["cae_policy_loss"] and row["gm_policy_loss"] == row["gm_policy_loss"]
     with pytest.raises(ValueError, match="train_executor"):
         MAPPOConfig(train_executor="no")
+
+
+def test_ship_run_records_the_earlier_stages(tmp_path, monkeypatch):
+    import masp_lite.checkpoints as ck
+    from masp_lite.algos.train import ship_run
+    monkeypatch.setattr(ck, "HERE", tmp_path / "ck")
+    monkeypatch.setattr(ck, "MANIFEST", tmp_path / "ck" / "manifest.json")
+    (tmp_path / "ck").mkdir()
+    cfg = MAPPOConfig(**{**TINY, "updates": 2})
+    first = train("mpe-5", cfg, tmp_path / "first", seed=0, progress=False)
+    second = train("mpe-5", cfg, tmp_path / "second", seed=1, progress=False, init=tmp_path / "first" / "weights.pt",
+                   overrides={"num_obstacles": 7})
+    with pytest.raises(ValueError, match="expected a run manifest"):
+        bogus = tmp_path / "bogus.json"
+        bogus.write_text("{}")
+        ship_run(tmp_path / "second", earlier=[(bogus, tmp_path / "first" / "progress.csv")])
+    entry = ship_run(tmp_path / "second", note="two stages",
+                     earlier=[(tmp_path / "first" / "manifest.json", tmp_path / "first" / "progress.csv")])
+    assert entry["training"]["seed"] == 1 and entry["training"]["init"].endswith("weights.pt")
+    assert [s["training"]["seed"] for s in entry["stages"]] == [0]
+    assert entry["stages"][0]["training"]["wall_clock_s"] == first["wall_clock_s"]
+    assert (tmp_path / "ck" / "mpe-5.stage1.progress.csv").read_text() == (tmp_path / "first" / "progress.csv").read_text()
+    assert json.loads((tmp_path / "ck" / "manifest.json").read_text())["mpe-5"]["note"] == "two stages"
+    nets, _ = load_weights(None, scenario="mpe-5")
+    assert nets.arch["width"] == 8 and second["iterations"] == 2

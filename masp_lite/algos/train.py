@@ -211,13 +211,23 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
     return manifest
 
 
-def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None) -> dict:
+_RUN_INFO = ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s", "started", "finished", "machine",
+             "config", "final_eval")
+
+
+def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None, earlier=()) -> dict:
     """Copy a finished run's ``weights.pt`` into :mod:`masp_lite.checkpoints` and record it in the manifest.
 
     The entry keeps the run's manifest (command, seed, env steps, wall-clock, machine, final
     evaluation) plus the SHA-256 of the copied file, the run's ``progress.csv`` (copied as
     ``<scenario>.progress.csv``), an optional ``evaluate()`` record and a free-text ``note``
     (e.g. the machine's load while it trained).
+
+    ``earlier``: the stages this run was fine-tuned from, oldest first, each a pair of
+    paths ``(manifest.json, progress.csv)`` of a finished run. They are recorded under
+    ``stages`` (their run information, and their curves copied as
+    ``<scenario>.stageK.progress.csv``), so the shipped weights' whole training history —
+    from scratch to the last fine-tuning — stays with them.
     """
     from ..checkpoints import HERE, MANIFEST, read_weights
     run_dir = Path(run_dir)
@@ -226,6 +236,16 @@ def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None) -
     m = json.loads((run_dir / "manifest.json").read_text())
     rec = read_weights(run_dir / "weights.pt")
     name = rec["scenario"]
+    stages = []
+    for k, (stage_manifest, stage_progress) in enumerate(earlier, start=1):
+        sm = json.loads(Path(stage_manifest).read_text())
+        missing = [key for key in _RUN_INFO if key not in sm]
+        if missing:
+            raise ValueError(f"{stage_manifest}: expected a run manifest; missing {missing}")
+        target = f"{name}.stage{k}.progress.csv"
+        atomic_write_bytes(HERE / target, Path(stage_progress).read_bytes())
+        stages.append({"scenario": sm.get("scenario"), "training": {key: sm[key] for key in _RUN_INFO},
+                       "progress": target})
     data = (run_dir / "weights.pt").read_bytes()
     atomic_write_bytes(HERE / f"{name}.pt", data)
     progress = None
@@ -233,11 +253,10 @@ def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None) -
         progress = f"{name}.progress.csv"
         atomic_write_bytes(HERE / progress, (run_dir / "progress.csv").read_bytes())
     manifest = json.loads(MANIFEST.read_text()) if MANIFEST.exists() else {}
-    run_info = {k: m[k] for k in ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s", "started",
-                                  "finished", "machine", "config", "final_eval")}
+    run_info = {k: m[k] for k in _RUN_INFO}
     manifest[name] = {"file": f"{name}.pt", "sha256": sha256(HERE / f"{name}.pt"), "scenario": name,
                       "arch": rec["arch"], "training": run_info, "evaluation": evaluation, "note": note,
-                      "progress": progress}
+                      "progress": progress, "stages": stages}
     atomic_write_bytes(MANIFEST, (json.dumps(manifest, indent=2, sort_keys=True) + "\n").encode())
     return manifest[name]
 
