@@ -171,6 +171,7 @@ def test_ship_run_records_the_earlier_stages(tmp_path, monkeypatch):
     entry = ship_run(tmp_path / "second", note="two stages",
                      earlier=[(tmp_path / "first" / "manifest.json", tmp_path / "first" / "progress.csv")])
     assert entry["training"]["seed"] == 1 and entry["training"]["init"].endswith("weights.pt")
+    assert entry["training"]["overrides"] == {"num_obstacles": 7}
     assert [s["training"]["seed"] for s in entry["stages"]] == [0]
     assert entry["stages"][0]["training"]["wall_clock_s"] == first["wall_clock_s"]
     assert (tmp_path / "ck" / "mpe-5.stage1.progress.csv").read_text() == (tmp_path / "first" / "progress.csv").read_text()

@@ -213,6 +213,11 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
 
 _RUN_INFO = ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s", "started", "finished", "machine",
              "config", "final_eval")
+_RUN_EXTRA = ("last_command", "overrides")  # present in the manifests of resumed runs / runs with overrides
+
+
+def _run_info(m: dict) -> dict:
+    return {**{k: m[k] for k in _RUN_INFO}, **{k: m[k] for k in _RUN_EXTRA if k in m}}
 
 
 def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None, earlier=()) -> dict:
@@ -244,7 +249,7 @@ def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None, e
             raise ValueError(f"{stage_manifest}: expected a run manifest; missing {missing}")
         target = f"{name}.stage{k}.progress.csv"
         atomic_write_bytes(HERE / target, Path(stage_progress).read_bytes())
-        stages.append({"scenario": sm.get("scenario"), "training": {key: sm[key] for key in _RUN_INFO},
+        stages.append({"scenario": sm.get("scenario"), "training": _run_info(sm),
                        "progress": target})
     data = (run_dir / "weights.pt").read_bytes()
     atomic_write_bytes(HERE / f"{name}.pt", data)
@@ -253,7 +258,7 @@ def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None, e
         progress = f"{name}.progress.csv"
         atomic_write_bytes(HERE / progress, (run_dir / "progress.csv").read_bytes())
     manifest = json.loads(MANIFEST.read_text()) if MANIFEST.exists() else {}
-    run_info = {k: m[k] for k in _RUN_INFO}
+    run_info = _run_info(m)
     manifest[name] = {"file": f"{name}.pt", "sha256": sha256(HERE / f"{name}.pt"), "scenario": name,
                       "arch": rec["arch"], "training": run_info, "evaluation": evaluation, "note": note,
                       "progress": progress, "stages": stages}
