@@ -220,10 +220,11 @@ def contact_breakdown(world, policy, episodes: int, seed: int | None = None) -> 
             obs, _ = world.step(policy.act(obs))
             pos, alive = obs["agent_pos"][:keep], obs["alive"][:keep]
             on = (torch.cdist(pos, obs["landmark_pos"][:keep]) <= sc.reach_distance).any(-1) & alive
-            aa = torch.triu(torch.cdist(pos, pos) < 2 * sc.agent_radius, diagonal=1)
+            exact = "donot_use_mm_for_euclid_dist"  # the world's own distances, no matmul shortcut
+            aa = torch.triu(torch.cdist(pos, pos, compute_mode=exact) < 2 * sc.agent_radius, diagonal=1)
             aa &= alive.unsqueeze(2) & alive.unsqueeze(1)
             both = on.unsqueeze(2) & on.unsqueeze(1)
-            ao = (torch.cdist(pos, obs["obstacle_pos"][:keep]) < sc.agent_radius + sc.obstacle_radius)
+            ao = torch.cdist(pos, obs["obstacle_pos"][:keep], compute_mode=exact) < sc.agent_radius + sc.obstacle_radius
             ao &= alive.unsqueeze(2)
             sums += torch.stack([(aa & both).sum(), (aa & ~both).sum(), (ao & on.unsqueeze(2)).sum(),
                                  (ao & ~on.unsqueeze(2)).sum()]).double()
