@@ -135,8 +135,12 @@ def _sync(device) -> None:
         torch.cuda.synchronize(device)
 
 
-def _rollout(world, policy, episodes: int, seed: int | None, progress=None):
-    """Episodes in batches of ``world.num_envs``; returns (log, per-act seconds per world)."""
+def _rollout(world, policy, episodes: int, seed: int | None, progress=None, on_step=None):
+    """Episodes in batches of ``world.num_envs``; returns (log, per-act seconds per world).
+
+    ``on_step(obs, keep)``, when given, sees the observation after every step and how many
+    leading worlds of the batch are episodes that count.
+    """
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes: expected a positive int, got {episodes!r}")
     B, T = world.num_envs, world.horizon
@@ -149,6 +153,7 @@ def _rollout(world, policy, episodes: int, seed: int | None, progress=None):
         first = False
         policy.reset(obs)
         cov, rea, alive, col = [obs["covered"]], [obs["reached"]], [obs["alive"]], []
+        keep = min(B, episodes - done_eps)
         for _ in range(T):
             _sync(device)
             t0 = time.perf_counter()
@@ -160,9 +165,10 @@ def _rollout(world, policy, episodes: int, seed: int | None, progress=None):
             rea.append(info["reached"])
             alive.append(info["alive"])
             col.append(info["collisions"])
+            if on_step is not None:
+                on_step(obs, keep)
             if progress is not None:
                 progress.update(1)
-        keep = min(B, episodes - done_eps)
         stack = lambda xs: torch.stack(xs, dim=1)[:keep].cpu()  # noqa: E731
         logs.append(EpisodeLog(stack(cov), stack(rea), stack(col).long(), stack(alive),
                                varying=bool(world.scenario.varying), horizon=int(T)))
@@ -203,32 +209,25 @@ def contact_breakdown(world, policy, episodes: int, seed: int | None = None) -> 
     landmark" when the agent is. Returns the mean contacts per step of each kind
     (:data:`CONTACT_KINDS`) and their sum under ``"total"``, which equals the mean CR.
     """
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ValueError(f"episodes: expected a positive int, got {episodes!r}")
     sc = world.scenario
     if sc.kind != "particle":
         raise ValueError(f"contact_breakdown: expected a particle world, got scenario {sc.name!r}")
-    B, T = world.num_envs, world.horizon
     sums = torch.zeros(len(CONTACT_KINDS), dtype=torch.float64)
-    done_eps, first = 0, True
-    while done_eps < episodes:
-        obs = world.reset(seed=seed if first else None)
-        first = False
-        policy.reset(obs)
-        keep = min(B, episodes - done_eps)
-        for _ in range(T):
-            obs, _ = world.step(policy.act(obs))
-            pos, alive = obs["agent_pos"][:keep], obs["alive"][:keep]
-            on = (torch.cdist(pos, obs["landmark_pos"][:keep]) <= sc.reach_distance).any(-1) & alive
-            exact = "donot_use_mm_for_euclid_dist"  # the world's own distances, no matmul shortcut
-            aa = torch.triu(torch.cdist(pos, pos, compute_mode=exact) < 2 * sc.agent_radius, diagonal=1)
-            aa &= alive.unsqueeze(2) & alive.unsqueeze(1)
-            both = on.unsqueeze(2) & on.unsqueeze(1)
-            ao = torch.cdist(pos, obs["obstacle_pos"][:keep], compute_mode=exact) < sc.agent_radius + sc.obstacle_radius
-            ao &= alive.unsqueeze(2)
-            sums += torch.stack([(aa & both).sum(), (aa & ~both).sum(), (ao & on.unsqueeze(2)).sum(),
-                                 (ao & ~on.unsqueeze(2)).sum()]).double()
-        done_eps += keep
+    exact = "donot_use_mm_for_euclid_dist"  # the world's own distances, no matmul shortcut
+
+    def count(obs, keep):
+        pos, alive = obs["agent_pos"][:keep], obs["alive"][:keep]
+        on = (torch.cdist(pos, obs["landmark_pos"][:keep]) <= sc.reach_distance).any(-1) & alive
+        aa = torch.triu(torch.cdist(pos, pos, compute_mode=exact) < 2 * sc.agent_radius, diagonal=1)
+        aa &= alive.unsqueeze(2) & alive.unsqueeze(1)
+        both = on.unsqueeze(2) & on.unsqueeze(1)
+        ao = torch.cdist(pos, obs["obstacle_pos"][:keep], compute_mode=exact) < sc.agent_radius + sc.obstacle_radius
+        ao &= alive.unsqueeze(2)
+        sums.add_(torch.stack([(aa & both).sum(), (aa & ~both).sum(), (ao & on.unsqueeze(2)).sum(),
+                               (ao & ~on.unsqueeze(2)).sum()]).double())
+
+    _rollout(world, policy, episodes, seed, on_step=count)  # the same batches and seeds as rollout()
+    T = world.horizon
     parts = {k: float(v) / (episodes * T) for k, v in zip(CONTACT_KINDS, sums)}
     return {**parts, "total": float(sums.sum()) / (episodes * T)}
 
