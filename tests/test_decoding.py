@@ -4,6 +4,8 @@ import itertools
 import pytest
 import torch
 
+from masp_lite.algos.assignment import hungarian
+
 from masp_lite.nets.decoding import (MASKED, conditional_logits, independent_goals, joint_argmax,
                                      sequential_sample, taken_before)
 
@@ -73,7 +75,7 @@ def test_independent_goals_allows_duplicates():
                               torch.ones(1, 3, dtype=torch.bool))[0, 1, 2] == MASKED
 
 
-@pytest.mark.parametrize("decode", ["joint", "independent"])
+@pytest.mark.parametrize("decode", ["joint", "independent", "hungarian"])
 def test_policy_decoders(decode):
     from masp_lite.envs import make
     from masp_lite.nets.policies import MASPNets, MASPPolicy
@@ -84,5 +86,21 @@ def test_policy_decoders(decode):
     pol.act(obs)
     if decode == "joint":
         assert _distinct(pol.goals, obs["alive"])
+    if decode == "hungarian":  # the diagnostic: exactly the Hungarian reference's goals
+        assert torch.equal(pol.goals, hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"]))
     with pytest.raises(ValueError, match="decode"):
         MASPPolicy.from_nets(w, MASPNets(), decode="greedy")
+
+
+def test_hungarian_diagnostic_on_a_shrinking_team():
+    """With more alive agents than unreached landmarks every agent still gets a goal."""
+    from masp_lite.envs import make
+    from masp_lite.nets.policies import MASPNets, MASPPolicy
+    torch.manual_seed(0)
+    w = make("mpe-20to10", num_envs=2, seed=0, num_agents=6, team_after=3, world_size=3.0)
+    pol = MASPPolicy.from_nets(w, MASPNets(), decode="hungarian")
+    obs = w.reset(seed=0)
+    pol.reset(obs)
+    for _ in range(w.horizon):
+        obs, _ = w.step(pol.act(obs))
+        assert bool((pol.goals >= 0).all()) and bool((pol.goals < 6).all())

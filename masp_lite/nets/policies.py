@@ -275,7 +275,12 @@ class MASPPolicy:
     ``decode``: how the Goal Matcher's scores become goals (:mod:`masp_lite.nets.decoding`):
     ``"joint"`` (default) gives the alive agents distinct goals — the most likely such
     assignment, or the sequential draw of training when sampling; ``"independent"`` lets
-    every agent take its own best goal, duplicates allowed (the paper's literal wording).
+    every agent take its own best goal, duplicates allowed (the paper's literal wording);
+    ``"hungarian"`` bypasses the Goal Matcher and takes the Hungarian assignment
+    (:func:`masp_lite.algos.assignment.hungarian`, the goals of ``h-greedy`` and of R_GM's
+    reference) every global step (an agent it leaves without a goal, when a shrinking team
+    has more agents than unreached landmarks, heads for its nearest landmark). That is not MASP: it is a diagnostic that tells the two
+    levels apart (the executor's share of a gap to ``h-greedy`` versus the Goal Matcher's).
     With a team change (``mpe-20to10``, ...) the success rate counts landmarks ever
     reached, so the Goal Matcher's choice is restricted to landmarks not reached yet (all
     of them once every one has been reached); fixed teams choose among all landmarks.
@@ -296,8 +301,8 @@ class MASPPolicy:
 
     def _setup(self, global_step, deterministic, seed, decode):
         from .decoding import DECODERS
-        if decode not in DECODERS:
-            raise ValueError(f"decode: expected one of {list(DECODERS)}, got {decode!r}")
+        if decode not in (*DECODERS, "hungarian"):
+            raise ValueError(f"decode: expected one of {[*DECODERS, 'hungarian']}, got {decode!r}")
         self.global_step, self.deterministic, self.seed = global_step, bool(deterministic), int(seed)
         self.decode = decode
         self.scale = self.world.scenario.world_size / 2
@@ -338,7 +343,13 @@ class MASPPolicy:
             mask = None
             if self.world.scenario.varying:  # landmarks already reached count for SR; pick among the rest
                 mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
-            new = self._goals(self.nets.gm_logits(obs, self.scale, mask), obs["alive"], mask)
+            if self.decode == "hungarian":  # diagnostic: the Hungarian reference instead of the Goal Matcher
+                from ..algos.assignment import hungarian
+                new = hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], mask)
+                nearest = torch.cdist(obs["agent_pos"], obs["landmark_pos"]).argmin(-1)
+                new = torch.where(new >= 0, new, nearest)  # agents left without a goal: the nearest landmark
+            else:
+                new = self._goals(self.nets.gm_logits(obs, self.scale, mask), obs["alive"], mask)
             self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
         B, N = self.goals.shape
         perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(self.goals.device)
