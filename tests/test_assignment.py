@@ -8,10 +8,10 @@ import torch
 from masp_lite.algos.assignment import assignment_cost, hungarian, hungarian_random_subset
 
 
-def brute_force(a, g):
-    """Least total distance over all injective maps of the smaller side into the larger."""
+def brute_force(a, g, power=1.0):
+    """Least total distance (to ``power``) over all injective maps of the smaller side into the larger."""
     n, m = len(a), len(g)
-    d = np.linalg.norm(a[:, None] - g[None], axis=-1)
+    d = np.linalg.norm(a[:, None] - g[None], axis=-1) ** power
     if n <= m:
         return min(sum(d[i, p[i]] for i in range(n)) for p in itertools.permutations(range(m), n))
     return min(sum(d[p[j], j] for j in range(m)) for p in itertools.permutations(range(n), m))
@@ -89,3 +89,25 @@ def test_distance_matrix_is_the_batched_cost():
     assert d.shape == (3, 4, 6)
     for b in range(3):
         np.testing.assert_allclose(d[b], cdist(a[b], g[b]))
+
+
+@pytest.mark.parametrize("n,m", [(5, 5), (3, 5), (5, 3)])
+def test_power_two_matches_brute_force(n, m):
+    rng = np.random.default_rng(7 + n + m)
+    a, g = torch.from_numpy(rng.normal(size=(5, n, 2))), torch.from_numpy(rng.normal(size=(5, m, 2)))
+    out = hungarian(a, g, power=2)
+    cost = assignment_cost(a, g, out, power=2)
+    for b in range(5):
+        assert cost[b].item() == pytest.approx(brute_force(a[b].numpy(), g[b].numpy(), 2.0), rel=1e-9)
+
+
+def test_squared_cost_shortens_the_longest_trip():
+    """Agent 1 sits on goal 0: total distance sends agent 0 on the long trip, squares do not."""
+    a = torch.tensor([[[0.0, 0.0], [1.0, 0.0]]])
+    g = torch.tensor([[[1.0, 0.0], [2.0, 0.3]]])
+    assert hungarian(a, g).tolist() == [[1, 0]]            # 2.022 + 0 < 1 + 1.044
+    assert hungarian(a, g, power=2).tolist() == [[0, 1]]   # 1 + 1.09 < 4.09 + 0
+    assert assignment_cost(a, g, torch.tensor([[0, 1]]), power=2).item() == pytest.approx(1 + 1.09)
+    for bad in (0, -1.0, float("inf"), True, "2"):
+        with pytest.raises(ValueError, match="power"):
+            hungarian(a, g, power=bad)

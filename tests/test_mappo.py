@@ -123,6 +123,19 @@ def test_r_gm_repeats():
     assert r[0, 1].item() == 0.0 and r[0, 2].item() == 0.0
 
 
+def test_r_gm_with_a_squared_reference():
+    """power=2: the reference minimises squared distances and D_m, D_h are squared totals."""
+    a = torch.tensor([[[0.0, 0.0], [1.0, 0.0]]])
+    g = torch.tensor([[[1.0, 0.0], [2.0, 0.3]]])
+    alive = torch.ones(1, 2, dtype=torch.bool)
+    total = goal_matcher_reward(a, g, torch.tensor([[1, 0]]), alive)       # the total-distance optimum
+    assert total.tolist() == [[0.0, 0.0]]
+    r = goal_matcher_reward(a, g, torch.tensor([[1, 0]]), alive, power=2)  # not the squared optimum
+    d_h, d_m = 1 + 1.09, 2.0**2 + 0.3**2
+    assert r[0].tolist() == pytest.approx([-(1 - d_h / d_m)] * 2, rel=1e-5)
+    assert goal_matcher_reward(a, g, torch.tensor([[0, 1]]), alive, power=2).tolist() == [[0.0, 0.0]]
+
+
 def test_r_gm_distance_ratio_without_repeats():
     goals = torch.tensor([[1, 0, 2]])
     r = goal_matcher_reward(AGENTS, GOALS, goals, ALIVE)

@@ -74,6 +74,21 @@ def test_h_greedy_reassigns_every_global_step_and_validates():
         make_policy("h-greedy", w, global_step=0)
     with pytest.raises(ValueError, match="unknown option"):
         make_policy("h-greedy", w, speed=3)
+    with pytest.raises(ValueError, match="power"):
+        make_policy("h-greedy", w, power=0)
+
+
+def test_h_greedy_power_sets_the_assignment_cost():
+    from masp_lite.algos.assignment import hungarian
+    w = make("mpe-20", num_envs=8, seed=1)
+    obs = w.reset(seed=1)
+    for power in (1, 2):
+        p = make_policy("h-greedy", w, power=power)
+        p.reset(obs)
+        p.act(obs)
+        assert torch.equal(p.assignment, hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], power=power))
+    plain = hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"])
+    assert not torch.equal(plain, hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], power=2))
 
 
 def test_h_greedy_hands_drone_worlds_to_the_drone_controller():

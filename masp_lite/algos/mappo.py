@@ -82,6 +82,12 @@ class MAPPOConfig:
     """How training samples goals from the Goal Matcher (:mod:`masp_lite.nets.decoding`):
     ``joint`` draws distinct goals agent by agent in a random order; ``independent`` lets
     every agent sample alone (duplicates allowed, the paper's literal wording)."""
+    gm_reference_power: float = 1.0
+    """Cost of R_GM's Hungarian reference (eq. 1): ``distance ** gm_reference_power`` per
+    agent–goal pair, minimised in total; ``D_m`` and ``D_h`` are totals of the same cost.
+    ``1``: total distance. ``2``: total squared distance, which favours assignments whose
+    longest trip is shorter (fewer Steps; see :func:`masp_lite.algos.assignment.hungarian`).
+    The paper does not give the reference's edge weights."""
     train_executor: bool = True
     """Update the executor and its critic; ``False`` freezes them and trains only the Goal
     Matcher (a cheap fine-tuning stage on a larger team: the executor's PPO update, which

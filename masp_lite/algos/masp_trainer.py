@@ -89,7 +89,8 @@ class MASPTrainer:
                     (goals, logp), rank = sample(logits, g), torch.zeros(B, N, dtype=torch.long)
                 v = n.gm_value(obs, self.scale, self.horizon)
                 goal_mask = ~obs["reached"] if w.scenario.varying else None
-                r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask)
+                r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask,
+                                        power=cfg.gm_reference_power)
                 gm.add(**snap, actions=goals, rank=rank, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
             perm = torch.rand(B, N, generator=g).argsort(-1)
             inputs = n.cae_inputs(obs, goals, perm)

@@ -47,20 +47,23 @@ def repeat_counts(goals: torch.Tensor, alive: torch.Tensor, num_goals: int) -> t
     return torch.gather(per_goal, 1, goals.clamp(min=0)) - alive.long()
 
 
-def goal_matcher_reward(agent_pos, goal_pos, goals, alive, goal_mask=None, reference=None) -> torch.Tensor:
+def goal_matcher_reward(agent_pos, goal_pos, goals, alive, goal_mask=None, reference=None,
+                        power: float = 1.0) -> torch.Tensor:
     """Equation 1 for every agent of every world: a float tensor (B, N).
 
     ``goals`` (B, N) long: the Goal Matcher's picks; ``alive`` (B, N) bool; ``goal_mask``
     (B, M) bool: goals the Hungarian reference may use (``None``: all); ``reference``:
-    a precomputed Hungarian assignment (B, N) (computed here when ``None``).
+    a precomputed Hungarian assignment (B, N) (computed here when ``None``); ``power``: the
+    reference minimises the total of ``distance ** power``, and ``D_m``, ``D_h`` are totals
+    of that cost (``MAPPOConfig.gm_reference_power``; 1 = total distance).
     """
     if goals.shape != alive.shape or goals.dtype != torch.long:
         raise ValueError(f"goals: expected a long tensor of shape {tuple(alive.shape)}, got "
                          f"{tuple(goals.shape)} {goals.dtype}")
-    h = hungarian(agent_pos, goal_pos, alive, goal_mask) if reference is None else reference
+    h = hungarian(agent_pos, goal_pos, alive, goal_mask, power) if reference is None else reference
     picked = torch.where(alive, goals, torch.full_like(goals, -1))
-    d_m = assignment_cost(agent_pos, goal_pos, picked)                   # (B,)
-    d_h = assignment_cost(agent_pos, goal_pos, h)
+    d_m = assignment_cost(agent_pos, goal_pos, picked, power)            # (B,)
+    d_h = assignment_cost(agent_pos, goal_pos, h, power)
     n_alive = alive.sum(1, keepdim=True).clamp(min=1).to(agent_pos.dtype)
     n_rep = repeat_counts(goals, alive, goal_pos.shape[1]).to(agent_pos.dtype)
     ratio = (d_h / d_m.clamp(min=1e-9)).unsqueeze(1).expand_as(n_rep)

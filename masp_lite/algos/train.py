@@ -140,7 +140,8 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
         state = _load_state(state_path)
         saved = dict(state.get("config", {}))
         now = dataclasses.asdict(cfg)
-        diff = sorted(k for k in now if k != "updates" and saved.get(k) != now[k])
+        defaults = dataclasses.asdict(MAPPOConfig())  # a field added since the state was saved has its default
+        diff = sorted(k for k in now if k != "updates" and saved.get(k, defaults[k]) != now[k])
         if state.get("scenario") != trainer.world.scenario.name or state.get("overrides", {}) != (overrides or {}):
             raise ValueError(f"{state_path} was trained on {state.get('scenario')!r} {state.get('overrides')}; "
                              f"expected {trainer.world.scenario.name!r} {overrides or {}}")

@@ -91,7 +91,9 @@ class HungarianGreedy:
     (a square problem); varying teams — over the landmarks not yet reached, since the
     success rate there counts landmarks ever reached (rectangular: with more unreached
     landmarks than agents the least-cost subset is chosen; with fewer, the extra agents
-    get no goal). A world whose team has just shrunk is reassigned at once rather than at
+    get no goal). ``power`` is the assignment's cost, ``distance ** power`` (1: total
+    distance, the "(H)" baselines' and the default; 2: total squared distance, shorter
+    longest trips, see :func:`~masp_lite.algos.assignment.hungarian`). A world whose team has just shrunk is reassigned at once rather than at
     its next global step, so the survivors take over the dropped agents' landmarks without
     delay. The current assignment is kept in ``self.assignment`` (B, N), ``-1`` for
     none, for playback.
@@ -118,13 +120,16 @@ class HungarianGreedy:
             return DroneHungarianGreedy(world, *args, **options)
         return super().__new__(cls)
 
-    def __init__(self, world, global_step: int = 3, **options):
+    def __init__(self, world, global_step: int = 3, power: float = 1.0, **options):
         if options:
-            raise ValueError(f"h-greedy: unknown option(s) {sorted(options)}; expected global_step")
+            raise ValueError(f"h-greedy: unknown option(s) {sorted(options)}; expected global_step, power")
         if isinstance(global_step, bool) or not isinstance(global_step, int) or global_step < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
+        if isinstance(power, bool) or not isinstance(power, (int, float)) or not 0 < power < float("inf"):
+            raise ValueError(f"power: expected a positive number, got {power!r}")
         self.world = world
         self.global_step = global_step
+        self.power = float(power)
         self.varying = bool(world.scenario.varying)
         self.assignment = None
         self._alive = None
@@ -136,7 +141,7 @@ class HungarianGreedy:
     def assign(self, obs) -> torch.Tensor:
         """Hungarian assignment for the current observation (see the class docstring)."""
         goal_mask = ~obs["reached"] if self.varying else None
-        return hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask)
+        return hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask, self.power)
 
     def act(self, obs) -> torch.Tensor:
         t = obs["t"]
