@@ -82,7 +82,8 @@ def distance_matrix(agent_pos: np.ndarray, goal_pos: np.ndarray) -> np.ndarray:
     return np.sqrt(((agent_pos[:, :, None, :] - goal_pos[:, None, :, :]) ** 2).sum(-1))
 
 
-def _check_power(power) -> float:
+def check_power(power) -> float:
+    """``power`` as a float; a clear error unless it is a positive finite number (not a bool)."""
     if isinstance(power, bool) or not isinstance(power, (int, float)) or not (0 < power < float("inf")):
         raise ValueError(f"power: expected a positive number, got {power!r}")
     return float(power)
@@ -119,7 +120,7 @@ def hungarian(agent_pos, goal_pos, agent_mask=None, goal_mask=None, power: float
     covered (the Steps metric).
     """
     a, g, am, gm, device = _check(agent_pos, goal_pos, agent_mask, goal_mask)
-    return torch.from_numpy(_solve(a, g, am, gm, _check_power(power))).to(device)
+    return torch.from_numpy(_solve(a, g, am, gm, check_power(power))).to(device)
 
 
 def hungarian_random_subset(agent_pos, goal_pos, agent_mask=None, goal_mask=None,
@@ -181,7 +182,7 @@ def assignment_cost(agent_pos, goal_pos, assignment, power: float = 1.0) -> torc
         raise ValueError(f"assignment: expected goal indices in [-1, {g.shape[1]}), got values outside")
     safe = np.clip(idx, 0, None)
     target = np.take_along_axis(g, safe[..., None], axis=1) if g.shape[1] else np.zeros_like(a)
-    power = _check_power(power)
+    power = check_power(power)
     dist = np.linalg.norm(a - target, axis=-1)
     dist = (dist if power == 1.0 else dist**power) * (idx >= 0)
     out = torch.from_numpy(dist.sum(1))

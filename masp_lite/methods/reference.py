@@ -22,7 +22,7 @@ import math
 
 import torch
 
-from ..algos.assignment import hungarian
+from ..algos.assignment import check_power, hungarian
 from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
 from ..planners.controllers import velocity_to_action  # the controller every planner shares
 
@@ -125,11 +125,9 @@ class HungarianGreedy:
             raise ValueError(f"h-greedy: unknown option(s) {sorted(options)}; expected global_step, power")
         if isinstance(global_step, bool) or not isinstance(global_step, int) or global_step < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
-        if isinstance(power, bool) or not isinstance(power, (int, float)) or not 0 < power < float("inf"):
-            raise ValueError(f"power: expected a positive number, got {power!r}")
         self.world = world
         self.global_step = global_step
-        self.power = float(power)
+        self.power = check_power(power)
         self.varying = bool(world.scenario.varying)
         self.assignment = None
         self._alive = None
