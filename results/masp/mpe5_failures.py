@@ -1,0 +1,135 @@
+"""Why SR stays below 0.99 on mpe-5: a lower bound on Steps and a count of the misses.
+
+Usage (from the repository root)::
+
+    python results/masp/mpe5_failures.py [--method masp] [--scenario mpe-5] [--set key=value ...]
+
+Part 1, ``T*``: for every evaluation episode (seeds 0 1 2, 100 episodes each, the spawns
+of ``evaluate``) the fewest steps after which some one-to-one assignment could have every
+agent within reach of its landmark, ignoring contacts. It uses MPE's exact dynamics from
+rest with axis-aligned pushes: a push at step ``s`` of ``T`` moves the agent
+``0.2 (1 - 0.75 ** (T - 1 - s))`` m along its axis by the end, so after ``T`` steps the
+agent lies in ``[-X, X] x [-Y, Y]`` for some split of the ``T`` steps into x-pushes
+(sum ``X``) and y-pushes (sum ``Y``). A landmark is reachable in ``T`` steps only if it
+lies within reach (0.15 m) of such a box; ``T*`` is the first ``T`` with a perfect
+matching of reachable pairs (scipy's ``maximum_bipartite_matching``). It is a necessary
+condition, so ``T*`` bounds every method's Steps from below.
+
+Part 2: every landmark uncovered at the end of an episode, sorted by what happened to it:
+never covered; covered, then left after the method switched that agent's goal; left
+within a step of a contact; left with neither (the agent drove off or overshot).
+Only the planners (``assignment``) and MASP (``goals``) expose goals; others count as
+"no switch".
+"""
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+
+import numpy as np
+import torch
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+
+from masp_lite import eval as E
+from masp_lite.envs import make
+from masp_lite.envs.particle import PHYSICS
+
+
+def push_front(T: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pareto front of (X, Y) over all splits of ``T`` pushes between the two axes."""
+    c = 1 - PHYSICS["damping"]
+    gain = PHYSICS["sensitivity"] * PHYSICS["dt"] ** 2 / PHYSICS["mass"] / PHYSICS["damping"]
+    s = np.arange(T)
+    move = gain * (1 - c ** (T - 1 - s))
+    masks = np.arange(2 ** T)
+    X = ((masks[:, None] >> s) & 1).astype(np.float64) @ move
+    Y = move.sum() - X
+    order = np.argsort(-X)
+    X, Y = X[order], Y[order]
+    keep = Y > np.maximum.accumulate(np.concatenate([[-1.0], Y[:-1]]))
+    return X[keep], Y[keep]
+
+
+def t_star(agent_pos: np.ndarray, landmark_pos: np.ndarray, reach: float, horizon: int) -> np.ndarray:
+    """(E,) lower bound on the steps to cover every landmark (``horizon + 1``: not within it)."""
+    d = np.abs(agent_pos[:, :, None, :] - landmark_pos[:, None, :, :])
+    out = np.full(d.shape[0], horizon + 1)
+    for T in range(1, horizon + 1):
+        FX, FY = push_front(T)
+        gap = np.hypot(np.maximum(d[..., 0, None] - FX, 0), np.maximum(d[..., 1, None] - FY, 0))
+        ok = (gap <= reach).any(-1)
+        for e in np.flatnonzero(out > horizon):
+            if (maximum_bipartite_matching(csr_matrix(ok[e].astype(np.int8)), perm_type="column") >= 0).all():
+                out[e] = T
+    return out
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--method", default="masp")
+    p.add_argument("--scenario", default="mpe-5")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="method option, e.g. checkpoint=runs/x/weights.pt")
+    a = p.parse_args(argv)
+    opts = dict(kv.split("=", 1) for kv in a.set)
+    factory = E._factory(a.method)
+    tstars, srs, steps, kinds = [], [], [], Counter()
+    for seed in (0, 1, 2):
+        world = make(a.scenario, num_envs=100, seed=seed)
+        o = dict(opts)
+        if "seed" in E._method_params(factory)[0]:
+            o.setdefault("seed", seed)
+        policy = E.build_policy(factory, a.method, world, o)
+        goals, act = [], policy.act
+
+        def act_and_log(obs, act=act, policy=policy):
+            actions = act(obs)
+            g = getattr(policy, "goals", getattr(policy, "assignment", None))
+            goals.append(None if g is None else g.clone())
+            return actions
+        policy.act = act_and_log
+        cov, con = [], []
+        start = world.reset(seed=seed)
+        reach = world.scenario.agent_radius + world.scenario.landmark_radius
+        tstars.append(t_star(start["agent_pos"].numpy(), start["landmark_pos"].numpy(), reach, world.horizon))
+
+        def on_step(obs, keep):
+            cov.append(obs["covered"].clone())
+            con.append(world.info()["agent_collisions"].clone())
+        log, _ = E._rollout(world, policy, 100, seed, on_step=on_step)
+        srs.append(E.success_rate(log).numpy())
+        steps.append(E.steps(log).numpy())
+        C, K = torch.stack(cov, 1), torch.stack(con, 1)          # (E, T, L), (E, T, N) after each step
+        for e in range(C.shape[0]):
+            for lm in torch.nonzero(~C[e, -1]).flatten().tolist():
+                if not C[e, :, lm].any():
+                    kinds["never covered"] += 1
+                    continue
+                t = int(torch.nonzero(C[e, :, lm]).flatten().max())  # last step index it was covered
+                G = goals[t + 1] if t + 1 < len(goals) else None
+                # the agent that covered it: the one whose goal it was, else the nearest now
+                k = None
+                if G is not None and (G[e] == lm).any():
+                    k = int(torch.nonzero(G[e] == lm).flatten()[0])
+                later = [g[e] for g in goals[t + 1:] if g is not None]
+                if k is not None and any(bool(g[k] != lm) for g in later):
+                    kinds["left after a goal switch"] += 1
+                elif k is not None and bool((K[e, t:t + 2, k] > 0).any()):
+                    kinds["left after a contact"] += 1
+                elif k is None:
+                    kinds["left, agent unknown"] += 1
+                else:
+                    kinds["left, no switch, no contact"] += 1
+    ts, sr, st = np.concatenate(tstars), np.concatenate(srs), np.concatenate(steps)
+    print(f"{a.method} on {a.scenario}: SR {sr.mean():.3f}, Steps {st.mean():.2f}; "
+          f"lower bound T*: mean {ts.mean():.2f}")
+    print(" T*  episodes  Steps  SR     episodes with SR < 1")
+    for T in np.unique(ts):
+        m = ts == T
+        print(f"{T:3d}  {m.sum():8d}  {st[m].mean():5.2f}  {sr[m].mean():.3f}  {(sr[m] < 1).sum():d}")
+    print("uncovered at the end:", sum(kinds.values()), dict(kinds))
+
+
+if __name__ == "__main__":
+    main()
