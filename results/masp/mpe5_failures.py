@@ -11,9 +11,12 @@ rest with axis-aligned pushes: a push at step ``s`` of ``T`` moves the agent
 ``0.2 (1 - 0.75 ** (T - 1 - s))`` m along its axis by the end, so after ``T`` steps the
 agent lies in ``[-X, X] x [-Y, Y]`` for some split of the ``T`` steps into x-pushes
 (sum ``X``) and y-pushes (sum ``Y``). A landmark is reachable in ``T`` steps only if it
-lies within reach (0.15 m) of such a box; ``T*`` is the first ``T`` with a perfect
-matching of reachable pairs (scipy's ``maximum_bipartite_matching``). It is a necessary
-condition, so ``T*`` bounds every method's Steps from below.
+lies within reach (0.15 m) of such a box. One agent may cover several landmarks at once
+only if they lie pairwise within twice the reach. ``T*`` is the first ``T`` at which some
+map from landmarks to agents obeys both conditions (all ``N ** N`` maps are tried; for
+``N > 6`` a perfect matching of reachable pairs, scipy's ``maximum_bipartite_matching``,
+stands in and ignores shared coverage). Both are necessary conditions, so ``T*`` bounds
+every method's Steps from below.
 
 Part 2: every landmark uncovered at the end of an episode, sorted by what happened to it:
 never covered; covered, then left after the method switched that agent's goal; left
@@ -24,6 +27,7 @@ Only the planners (``assignment``) and MASP (``goals``) expose goals; others cou
 from __future__ import annotations
 
 import argparse
+import itertools
 from collections import Counter
 
 import numpy as np
@@ -53,14 +57,27 @@ def push_front(T: int) -> tuple[np.ndarray, np.ndarray]:
 
 def t_star(agent_pos: np.ndarray, landmark_pos: np.ndarray, reach: float, horizon: int) -> np.ndarray:
     """(E,) lower bound on the steps to cover every landmark (``horizon + 1``: not within it)."""
+    E, N = agent_pos.shape[:2]
     d = np.abs(agent_pos[:, :, None, :] - landmark_pos[:, None, :, :])
-    out = np.full(d.shape[0], horizon + 1)
+    near = np.linalg.norm(landmark_pos[:, :, None] - landmark_pos[:, None], axis=-1) <= 2 * reach
+    maps = np.array(list(itertools.product(range(N), repeat=N))) if N <= 6 else None   # landmark -> agent
+    if maps is not None:
+        li, lj = np.triu_indices(N, 1)
+        shared = maps[:, li] == maps[:, lj]                                  # (maps, pairs)
+    out = np.full(E, horizon + 1)
     for T in range(1, horizon + 1):
         FX, FY = push_front(T)
         gap = np.hypot(np.maximum(d[..., 0, None] - FX, 0), np.maximum(d[..., 1, None] - FY, 0))
-        ok = (gap <= reach).any(-1)
+        ok = (gap <= reach).any(-1)                                          # (E, agent, landmark)
         for e in np.flatnonzero(out > horizon):
-            if (maximum_bipartite_matching(csr_matrix(ok[e].astype(np.int8)), perm_type="column") >= 0).all():
+            if maps is None:
+                found = (maximum_bipartite_matching(csr_matrix(ok[e].astype(np.int8)),
+                                                    perm_type="column") >= 0).all()
+            else:
+                reachable = ok[e][maps, np.arange(N)].all(-1)
+                apart = (shared & ~near[e][li, lj]).any(-1)
+                found = bool((reachable & ~apart).any())
+            if found:
                 out[e] = T
     return out
 
