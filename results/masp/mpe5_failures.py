@@ -19,7 +19,8 @@ stands in and ignores shared coverage). Both are necessary conditions, so ``T*``
 every method's Steps from below.
 
 Part 2: every landmark uncovered at the end of an episode, sorted by what happened to it:
-never covered; covered, then left after the method switched that agent's goal; left
+never covered, with or without an obstacle across the straight line from its agent's
+final position (see :func:`blocked`); covered, then left after the method switched that agent's goal; left
 within a step of a contact; left with neither (the agent drove off or overshot).
 Only the planners (``assignment``) and MASP (``goals``) expose goals; others count as
 "no switch".
@@ -82,6 +83,29 @@ def t_star(agent_pos: np.ndarray, landmark_pos: np.ndarray, reach: float, horizo
     return out
 
 
+def blocked(world, e: int, lm: int, goals) -> bool:
+    """An obstacle lies across the straight line from the landmark's agent to the landmark.
+
+    The landmark's agent is the one whose goal it is at the last decision (the nearest
+    agent when the method exposes no goals); "across" means the obstacle's centre is within
+    ``agent_radius + obstacle_radius`` of the segment from the agent to the landmark.
+    """
+    sc = world.scenario
+    pos, target = world.agent_pos[e], world.landmark_pos[e, lm]
+    k = None
+    if goals is not None and bool((goals[e] == lm).any()):
+        k = int(torch.nonzero(goals[e] == lm).flatten()[0])
+    if k is None:
+        k = int((pos - target).norm(dim=-1).argmin())
+    a, seg = pos[k], target - pos[k]
+    obst = world.obstacle_pos[e]
+    if obst.shape[0] == 0:
+        return False
+    t = ((obst - a) @ seg / seg.dot(seg).clamp(min=1e-12)).clamp(0, 1)
+    gap = (a + t[:, None] * seg - obst).norm(dim=-1)
+    return bool((gap < sc.agent_radius + sc.obstacle_radius).any())
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--method", default="masp")
@@ -121,7 +145,8 @@ def main(argv=None):
         for e in range(C.shape[0]):
             for lm in torch.nonzero(~C[e, -1]).flatten().tolist():
                 if not C[e, :, lm].any():
-                    kinds["never covered"] += 1
+                    kinds["never covered, " + ("obstacle in the way" if blocked(world, e, lm, goals[-1])
+                                               else "open line")] += 1
                     continue
                 t = int(torch.nonzero(C[e, :, lm]).flatten().max())  # last step index it was covered
                 G = goals[t + 1] if t + 1 < len(goals) else None
