@@ -5,8 +5,8 @@ Usage (from the repository root)::
     python results/masp/mpe5_failures.py [--method masp] [--scenario mpe-5] [--set key=value ...]
 
 Part 1, ``T*``: for every evaluation episode (seeds 0 1 2, 100 episodes each, the spawns
-of ``evaluate``) the fewest steps after which some one-to-one assignment could have every
-agent within reach of its landmark, ignoring contacts. It uses MPE's exact dynamics from
+of ``evaluate``) the fewest steps after which the agents could have every landmark within
+reach, ignoring contacts. It uses MPE's exact dynamics from
 rest with axis-aligned pushes: a push at step ``s`` of ``T`` moves the agent
 ``0.2 (1 - 0.75 ** (T - 1 - s))`` m along its axis by the end, so after ``T`` steps the
 agent lies in ``[-X, X] x [-Y, Y]`` for some split of the ``T`` steps into x-pushes

@@ -1,0 +1,54 @@
+"""The analysis script behind results/masp/README.md's mpe-5 section agrees with the world's dynamics."""
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from masp_lite.envs import make
+
+SCRIPT = Path(__file__).resolve().parents[1] / "results" / "masp" / "mpe5_failures.py"
+
+
+@pytest.fixture(scope="module")
+def failures():
+    spec = importlib.util.spec_from_file_location("mpe5_failures", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _push_x(steps):
+    """x of one agent from rest at the origin after ``steps`` steps of the +x action."""
+    w = make("mpe-5", num_envs=1, num_agents=1, num_obstacles=0, seed=0)
+    w.reset(options={"agent_pos": torch.zeros(1, 2), "landmark_pos": torch.tensor([[0.9, 0.9]])})
+    for _ in range(steps):
+        w.step(torch.tensor([[2]]))
+    return float(w.agent_pos[0, 0, 0])
+
+
+@pytest.mark.parametrize("T", [1, 4, 9])
+def test_push_front_matches_the_world(failures, T):
+    FX, FY = failures.push_front(T)
+    assert FX.max() == pytest.approx(_push_x(T), abs=1e-5)   # all pushes along x
+    assert FY.min() == pytest.approx(0.0, abs=1e-12)
+    assert np.all(np.diff(FX) < 0) and np.all(np.diff(FY) > 0)  # a Pareto front
+
+
+def test_t_star_is_the_first_covering_step_on_a_straight_line(failures):
+    """Pushing straight at a landmark on the x axis is optimal: T* is when the world first covers it."""
+    reach = 0.15
+    for dist in (0.3, 0.8, 1.6):
+        t_world = next(t for t in range(1, 19) if _push_x(t) >= dist - reach)
+        agents, lms = np.zeros((1, 1, 2)), np.array([[[dist, 0.0]]])
+        assert failures.t_star(agents, lms, reach, 18)[0] == t_world
+    assert failures.t_star(np.zeros((1, 1, 2)), np.array([[[5.0, 0.0]]]), reach, 18)[0] == 19  # out of reach
+
+
+def test_t_star_lets_one_agent_cover_two_close_landmarks(failures):
+    agents = np.array([[[0.0, 0.0], [3.0, 3.0]]])            # the second agent is far from both
+    close = np.array([[[0.5, 0.0], [0.5, 0.25]]])            # 0.25 m apart: one agent covers both
+    apart = np.array([[[0.5, 0.0], [0.5, 0.4]]])             # 0.4 m apart: it cannot
+    assert failures.t_star(agents, close, 0.15, 18)[0] < 19
+    assert failures.t_star(agents, apart, 0.15, 18)[0] > failures.t_star(agents, close, 0.15, 18)[0]
