@@ -52,3 +52,11 @@ def test_t_star_lets_one_agent_cover_two_close_landmarks(failures):
     apart = np.array([[[0.5, 0.0], [0.5, 0.4]]])             # 0.4 m apart: it cannot
     assert failures.t_star(agents, close, 0.15, 18)[0] < 19
     assert failures.t_star(agents, apart, 0.15, 18)[0] > failures.t_star(agents, close, 0.15, 18)[0]
+
+
+@pytest.mark.parametrize("obstacle_y, expected", [(0.05, True), (0.5, False)])
+def test_blocked_sees_an_obstacle_across_the_straight_line(failures, obstacle_y, expected):
+    w = make("mpe-5", num_envs=1, num_agents=1, num_obstacles=1, seed=0)
+    w.reset(options={"agent_pos": torch.tensor([[-0.8, 0.0]]), "landmark_pos": torch.tensor([[0.8, 0.0]]),
+                     "obstacle_pos": torch.tensor([[0.0, obstacle_y]])})
+    assert failures.blocked(w, 0, 0, torch.tensor([[0]])) is expected

@@ -83,6 +83,13 @@ def t_star(agent_pos: np.ndarray, landmark_pos: np.ndarray, reach: float, horizo
     return out
 
 
+def goal_agent(goals, e: int, lm: int) -> int | None:
+    """The first agent of world ``e`` whose goal is landmark ``lm`` (``None``: no goals, or nobody's)."""
+    if goals is None or not bool((goals[e] == lm).any()):
+        return None
+    return int(torch.nonzero(goals[e] == lm).flatten()[0])
+
+
 def blocked(world, e: int, lm: int, goals) -> bool:
     """An obstacle lies across the straight line from the landmark's agent to the landmark.
 
@@ -92,9 +99,7 @@ def blocked(world, e: int, lm: int, goals) -> bool:
     """
     sc = world.scenario
     pos, target = world.agent_pos[e], world.landmark_pos[e, lm]
-    k = None
-    if goals is not None and bool((goals[e] == lm).any()):
-        k = int(torch.nonzero(goals[e] == lm).flatten()[0])
+    k = goal_agent(goals, e, lm)
     if k is None:
         k = int((pos - target).norm(dim=-1).argmin())
     a, seg = pos[k], target - pos[k]
@@ -149,11 +154,8 @@ def main(argv=None):
                                                else "open line")] += 1
                     continue
                 t = int(torch.nonzero(C[e, :, lm]).flatten().max())  # last step index it was covered
-                G = goals[t + 1] if t + 1 < len(goals) else None
-                # the agent that covered it: the one whose goal it was, else the nearest now
-                k = None
-                if G is not None and (G[e] == lm).any():
-                    k = int(torch.nonzero(G[e] == lm).flatten()[0])
+                # the agent that covered it: the one whose goal it was at the next decision
+                k = goal_agent(goals[t + 1], e, lm) if t + 1 < len(goals) else None
                 later = [g[e] for g in goals[t + 1:] if g is not None]
                 if k is not None and any(bool(g[k] != lm) for g in later):
                     kinds["left after a goal switch"] += 1
