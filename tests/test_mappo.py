@@ -166,3 +166,17 @@ def test_executor_reward_terms():
     assert r[0, 0].item() == pytest.approx(1.0 - 2.0 * 0.1 / 4.0)
     assert r[0, 1].item() == pytest.approx(-2.0 * 2.0 / 4.0 - 0.5 * 2)
     assert executor_reward(pos, goal, coll, ~alive, 0.15, 8.0).tolist() == [[0.0, 0.0]]
+
+
+def test_executor_reward_distance_to_reach_edge():
+    pos = torch.tensor([[[0.0, 0.0], [3.0, 0.0]]])
+    goal = torch.tensor([[[0.1, 0.0], [3.0, 2.0]]])
+    coll = torch.tensor([[0, 0]])
+    alive = torch.tensor([[True, True]])
+    r = executor_reward(pos, goal, coll, alive, reach=0.15, world_size=8.0, distance_to="reach")
+    assert r[0, 0].item() == pytest.approx(1.0)                    # inside the reach disc: no R_d
+    assert r[0, 1].item() == pytest.approx(-(2.0 - 0.15) / 4.0)     # outside: distance to the edge
+    with pytest.raises(ValueError, match="distance_to"):
+        executor_reward(pos, goal, coll, alive, 0.15, 8.0, distance_to="edge")
+    with pytest.raises(ValueError, match="distance_to"):
+        MAPPOConfig(distance_to="middle")

@@ -60,3 +60,13 @@ def test_blocked_sees_an_obstacle_across_the_straight_line(failures, obstacle_y,
     w.reset(options={"agent_pos": torch.tensor([[-0.8, 0.0]]), "landmark_pos": torch.tensor([[0.8, 0.0]]),
                      "obstacle_pos": torch.tensor([[0.0, obstacle_y]])})
     assert failures.blocked(w, 0, 0, torch.tensor([[0]])) is expected
+
+
+def test_landmark_geometry_nearest_landmark_and_obstacle(failures):
+    landmarks = torch.tensor([[[0.0, 0.0], [0.2, 0.0], [1.0, 0.0]]])
+    obstacles = torch.tensor([[[0.0, 0.5], [1.0, -0.3]]])
+    near_lm, near_obst = failures.landmark_geometry(landmarks, obstacles)
+    assert near_lm[0].tolist() == pytest.approx([0.2, 0.2, 0.8])
+    assert near_obst[0].tolist() == pytest.approx([0.5, (0.2 ** 2 + 0.5 ** 2) ** 0.5, 0.3])
+    _, none = failures.landmark_geometry(landmarks, obstacles[:, :0])
+    assert torch.isinf(none).all()

@@ -66,6 +66,11 @@ class MAPPOConfig:
     """alpha in R_CAE: weight of the complete bonus R_b."""
     distance_coef: float = 1.0
     """beta in R_CAE: weight of the distance penalty R_d."""
+    distance_to: str = "centre"
+    """What R_d measures the distance to: ``centre``, the assigned landmark's centre (after
+    MAGE-X), or ``reach``, the edge of its reach disc (0 anywhere the landmark counts as
+    covered, so an agent on its landmark is not pulled onto the exact centre, where a
+    neighbour on a close landmark or an obstacle beside it pushes it off)."""
     collision_coef: float = 1.0
     """gamma in R_CAE: weight of the collision penalty R_c."""
     width: int = 32
@@ -113,6 +118,8 @@ class MAPPOConfig:
                 raise ValueError(f"{name}: expected a number in [0, 1], got {getattr(self, name)!r}")
         if not isinstance(self.train_executor, bool):
             raise ValueError(f"train_executor: expected True or False, got {self.train_executor!r}")
+        if self.distance_to not in ("centre", "reach"):
+            raise ValueError(f"distance_to: expected 'centre' or 'reach', got {self.distance_to!r}")
         if self.gm_decode not in ("joint", "independent"):
             raise ValueError(f"gm_decode: expected 'joint' or 'independent', got {self.gm_decode!r}")
         for name in ("lr", "clip", "huber_delta", "max_grad_norm"):

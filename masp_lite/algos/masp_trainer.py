@@ -100,7 +100,8 @@ class MASPTrainer:
             obs, info = w.step(torch.where(alive, actions, torch.zeros_like(actions)))
             goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand(B, N, 2))
             r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
-                                w.scenario.world_size, cfg.bonus_coef, cfg.distance_coef, cfg.collision_coef)
+                                w.scenario.world_size, cfg.bonus_coef, cfg.distance_coef, cfg.collision_coef,
+                                cfg.distance_to)
             cae.add(**snap, goals=goals, perm=perm, actions=actions, logp=logp, values=v, rewards=r, mask=alive)
             cov.append(info["covered"].all(-1))
             col.append(info["collisions"])

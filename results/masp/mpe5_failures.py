@@ -24,6 +24,12 @@ final position (see :func:`blocked`); covered, then left after the method switch
 within a step of a contact; left with neither (the agent drove off or overshot).
 Only the planners (``assignment``) and MASP (``goals``) expose goals; others count as
 "no switch".
+
+Part 3: the share of landmarks missed by where the landmark lies (:func:`landmark_geometry`):
+how close its nearest other landmark is (two agents on landmarks under 0.3 m apart must not
+both sit on the centres, which are closer than two agent radii plus a margin) and how close
+its nearest obstacle's centre is (under 0.25 m an agent on the landmark's centre touches the
+obstacle; it has to cover it from the far side of the reach disc).
 """
 from __future__ import annotations
 
@@ -83,6 +89,19 @@ def t_star(agent_pos: np.ndarray, landmark_pos: np.ndarray, reach: float, horizo
     return out
 
 
+def landmark_geometry(landmark_pos: torch.Tensor, obstacle_pos: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """(E, L) distances from each landmark to its nearest other landmark and nearest obstacle centre.
+
+    ``inf`` where there is no other landmark or no obstacle.
+    """
+    E, L = landmark_pos.shape[:2]
+    dl = torch.cdist(landmark_pos, landmark_pos)
+    dl = dl.masked_fill(torch.eye(L, dtype=torch.bool), float("inf"))
+    if obstacle_pos.shape[1] == 0:
+        return dl.min(-1).values, torch.full((E, L), float("inf"), dtype=landmark_pos.dtype)
+    return dl.min(-1).values, torch.cdist(landmark_pos, obstacle_pos).min(-1).values
+
+
 def goal_agent(goals, e: int, lm: int) -> int | None:
     """The first agent of world ``e`` whose goal is landmark ``lm`` (``None``: no goals, or nobody's)."""
     if goals is None or not bool((goals[e] == lm).any()):
@@ -121,6 +140,7 @@ def main(argv=None):
     opts = dict(kv.split("=", 1) for kv in a.set)
     factory = E._factory(a.method)
     tstars, srs, steps, kinds = [], [], [], Counter()
+    near_lm, near_obst, missed = [], [], []
     for seed in (0, 1, 2):
         world = make(a.scenario, num_envs=100, seed=seed)
         o = dict(opts)
@@ -147,6 +167,10 @@ def main(argv=None):
         srs.append(E.success_rate(log).numpy())
         steps.append(E.steps(log).numpy())
         C, K = torch.stack(cov, 1), torch.stack(con, 1)          # (E, T, L), (E, T, N) after each step
+        dl, do = landmark_geometry(world.landmark_pos, world.obstacle_pos)
+        near_lm.append(dl.flatten().numpy())
+        near_obst.append(do.flatten().numpy())
+        missed.append((~C[:, -1]).flatten().numpy())
         for e in range(C.shape[0]):
             for lm in torch.nonzero(~C[e, -1]).flatten().tolist():
                 if not C[e, :, lm].any():
@@ -173,6 +197,13 @@ def main(argv=None):
         m = ts == T
         print(f"{T:3d}  {m.sum():8d}  {st[m].mean():5.2f}  {sr[m].mean():.3f}  {(sr[m] < 1).sum():d}")
     print("uncovered at the end:", sum(kinds.values()), dict(kinds))
+    miss = np.concatenate(missed)
+    for name, dist, edges in (("nearest other landmark", np.concatenate(near_lm), [0, 0.3, 0.5, 1.0, np.inf]),
+                              ("nearest obstacle centre", np.concatenate(near_obst), [0, 0.25, 0.3, 0.4, 0.6, np.inf])):
+        print(f"missed / landmarks by {name} (m):")
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            m = (dist >= lo) & (dist < hi)
+            print(f"  [{lo:.2f}, {hi:.2f}): {miss[m].sum():3d} / {m.sum():4d} = {miss[m].mean() if m.any() else 0:.3f}")
 
 
 if __name__ == "__main__":
