@@ -204,6 +204,10 @@ def main(argv=None):
         for lo, hi in zip(edges[:-1], edges[1:]):
             m = (dist >= lo) & (dist < hi)
             print(f"  [{lo:.2f}, {hi:.2f}): {miss[m].sum():3d} / {m.sum():4d} = {miss[m].mean() if m.any() else 0:.3f}")
+    dl, do = np.concatenate(near_lm), np.concatenate(near_obst)
+    hard, far = (dl < 0.3) | (do < 0.25), (dl >= 0.5) & (do >= 0.5)
+    print(f"missed with another landmark under 0.3 m or an obstacle centre under 0.25 m: "
+          f"{miss[hard].sum()} of {miss.sum()}; with both over 0.5 m: {miss[far].sum()} / {far.sum()}")
 
 
 if __name__ == "__main__":
