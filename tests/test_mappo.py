@@ -180,3 +180,5 @@ def test_executor_reward_distance_to_reach_edge():
         executor_reward(pos, goal, coll, alive, 0.15, 8.0, distance_to="edge")
     with pytest.raises(ValueError, match="distance_to"):
         MAPPOConfig(distance_to="middle")
+    with pytest.raises(ValueError, match="group_order"):
+        MAPPOConfig(group_order="closest")

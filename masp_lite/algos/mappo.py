@@ -83,6 +83,9 @@ class MAPPOConfig:
     """Nearest obstacles the executor sees."""
     global_step: int = 3
     """Environment steps per Goal Matcher decision."""
+    group_order: str = "random"
+    """Order of agent ``k``'s others before the group division: ``random`` (the paper) or
+    ``nearest`` (by distance from ``k``; see :class:`masp_lite.nets.policies.MASPNets`)."""
     gm_decode: str = "joint"
     """How training samples goals from the Goal Matcher (:mod:`masp_lite.nets.decoding`):
     ``joint`` draws distinct goals agent by agent in a random order; ``independent`` lets
@@ -118,6 +121,8 @@ class MAPPOConfig:
                 raise ValueError(f"{name}: expected a number in [0, 1], got {getattr(self, name)!r}")
         if not isinstance(self.train_executor, bool):
             raise ValueError(f"train_executor: expected True or False, got {self.train_executor!r}")
+        if self.group_order not in ("random", "nearest"):
+            raise ValueError(f"group_order: expected 'random' or 'nearest', got {self.group_order!r}")
         if self.distance_to not in ("centre", "reach"):
             raise ValueError(f"distance_to: expected 'centre' or 'reach', got {self.distance_to!r}")
         if self.gm_decode not in ("joint", "independent"):

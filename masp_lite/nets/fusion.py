@@ -33,7 +33,7 @@ from torch import nn
 
 from .encoders import mlp
 
-__all__ = ["group_division", "gcn_layer", "GroupInformationFusion", "random_permutation", "linear_relu"]
+__all__ = ["group_division", "nearest_order", "gcn_layer", "GroupInformationFusion", "random_permutation", "linear_relu"]
 
 
 class _LinearReLU(torch.autograd.Function):
@@ -75,10 +75,24 @@ def random_permutation(batch: int, num_agents: int, generator: torch.Generator |
     return torch.rand(batch, num_agents, generator=generator).argsort(dim=-1).to(device)
 
 
+def nearest_order(pos: torch.Tensor, alive: torch.Tensor) -> torch.Tensor:
+    """Per-agent orders (B, N, N) for :func:`group_division`: row ``k`` lists the agents by
+    distance from agent ``k`` (``k`` first, dropped agents last, ties by index).
+
+    With it the groups of ``k`` hold its nearest others together (nearest two in the first
+    group, and so on) instead of a random split; the paper leaves the order open
+    (``MASPNets(group_order="nearest")``).
+    """
+    d = torch.cdist(pos, pos)
+    d = d.masked_fill(~alive.unsqueeze(1), float("inf"))
+    return d.argsort(dim=-1, stable=True)
+
+
 def group_division(perm: torch.Tensor, group_size: int = 3) -> torch.Tensor:
     """The paper's group division for every agent of every world.
 
-    ``perm`` (B, N): a random order of the agents per world (see :func:`random_permutation`).
+    ``perm`` (B, N): a random order of the agents per world (see :func:`random_permutation`);
+    or (B, N, N): one order per agent (row ``k`` for agent ``k``, e.g. :func:`nearest_order`).
     Returns a long tensor (B, N, G, n) of agent indices with ``G = ceil((N - 1) / m)``
     groups of ``n = m + 1`` members, ``m = min(group_size - 1, N - 1)``; entry
     ``[b, k, g, 0]`` is ``k`` itself (k joins every group), the others of agent ``k`` are
@@ -91,14 +105,14 @@ def group_division(perm: torch.Tensor, group_size: int = 3) -> torch.Tensor:
     """
     if isinstance(group_size, bool) or not isinstance(group_size, int) or group_size < 2:
         raise ValueError(f"group_size: expected an int >= 2, got {group_size!r}")
-    if perm.dim() != 2:
-        raise ValueError(f"perm: expected a (B, N) tensor, got shape {tuple(perm.shape)}")
-    B, N = perm.shape
+    if perm.dim() not in (2, 3) or (perm.dim() == 3 and perm.shape[1] != perm.shape[2]):
+        raise ValueError(f"perm: expected a (B, N) or (B, N, N) tensor, got shape {tuple(perm.shape)}")
+    B, N = perm.shape[:2]
     ids = torch.arange(N, device=perm.device)
     if N == 1:
         return ids.view(1, 1, 1, 1).expand(B, 1, 1, 1).clone()
     m = min(group_size - 1, N - 1)
-    full = perm.unsqueeze(1).expand(B, N, N)
+    full = perm.unsqueeze(1).expand(B, N, N) if perm.dim() == 2 else perm
     others = full[full != ids.view(1, N, 1)].view(B, N, N - 1)  # order kept, k removed
     G = math.ceil((N - 1) / m)
     pad = G * m - (N - 1)

@@ -222,18 +222,27 @@ class MASPNets(nn.Module):
     """Both levels' actors and critics, with the architecture in ``arch`` (saved in checkpoints).
 
     ``arch``: ``width`` (L = 32), ``group_size`` (N_g = 3), ``gcn_layers``, ``obstacles_seen``,
-    ``global_step`` (environment steps per Goal Matcher decision, 3 in the paper).
+    ``global_step`` (environment steps per Goal Matcher decision, 3 in the paper),
+    ``group_order``: how agent ``k``'s others are ordered before they are cut into groups,
+    ``"random"`` (the paper's random division) or ``"nearest"`` (by distance from ``k``,
+    :func:`~masp_lite.nets.fusion.nearest_order`). Files saved before ``group_order``
+    existed load as ``"random"``, and ``arch`` lists ``group_order`` only when it is not
+    ``"random"``, so their records stay equal.
     """
 
     def __init__(self, width: int = 32, group_size: int = 3, gcn_layers: int = 1,
-                 obstacles_seen: int = 2, global_step: int = 3):
+                 obstacles_seen: int = 2, global_step: int = 3, group_order: str = "random"):
         super().__init__()
         for name, v, low in (("width", width, 1), ("group_size", group_size, 2), ("gcn_layers", gcn_layers, 1),
                              ("obstacles_seen", obstacles_seen, 1), ("global_step", global_step, 1)):
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an int >= {low}, got {v!r}")
+        if group_order not in ("random", "nearest"):
+            raise ValueError(f"group_order: expected 'random' or 'nearest', got {group_order!r}")
         self.arch = dict(width=width, group_size=group_size, gcn_layers=gcn_layers,
                          obstacles_seen=obstacles_seen, global_step=global_step)
+        if group_order != "random":
+            self.arch["group_order"] = group_order
         self.gm = GoalMatcher(width)
         self.gm_critic = GoalMatcherCritic(width)
         self.cae = CoordinatedActionExecutor(width, gcn_layers, obstacles_seen)
@@ -248,9 +257,14 @@ class MASPNets(nn.Module):
         return self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
 
     def cae_inputs(self, obs: dict, goals: torch.Tensor, perm: torch.Tensor) -> tuple:
-        """Executor inputs for goal indices ``goals`` (B, N) and group order ``perm`` (B, N)."""
-        from .fusion import group_division
+        """Executor inputs for goal indices ``goals`` (B, N) and group order ``perm`` (B, N).
+
+        With ``arch["group_order"] == "nearest"`` the order comes from the positions and
+        ``perm`` is not used."""
+        from .fusion import group_division, nearest_order
         pos, vel = obs["agent_pos"], obs["agent_vel"]
+        if self.arch.get("group_order", "random") == "nearest":
+            perm = nearest_order(pos, obs["alive"])
         goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos))
         return (pair_features(pos, vel), group_division(perm, self.arch["group_size"]), obs["alive"],
                 goal_features(pos, vel, goal_pos),
