@@ -70,3 +70,51 @@ def test_landmark_geometry_nearest_landmark_and_obstacle(failures):
     assert near_obst[0].tolist() == pytest.approx([0.5, (0.2 ** 2 + 0.5 ** 2) ** 0.5, 0.3])
     _, none = failures.landmark_geometry(landmarks, obstacles[:, :0])
     assert torch.isinf(none).all()
+
+
+ORACLE = Path(__file__).resolve().parents[1] / "results" / "masp" / "mpe5_oracle.py"
+
+
+@pytest.fixture(scope="module")
+def oracle():
+    spec = importlib.util.spec_from_file_location("mpe5_oracle", ORACLE)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_arrival_controller_brings_one_agent_to_rest_on_its_landmark(oracle):
+    w = make("mpe-5", num_envs=1, num_agents=1, num_obstacles=0, seed=0)
+    goal = torch.tensor([[[0.7, -0.4]]], dtype=w.agent_pos.dtype)
+    w.reset(options={"agent_pos": torch.tensor([[-0.6, 0.5]]), "landmark_pos": goal[0]})
+    for _ in range(w.horizon):
+        w.step(oracle.arrival_actions(w.agent_pos, w.agent_vel, goal))
+    assert float((w.agent_pos - goal).norm()) < w.scenario.reach_distance
+    assert float(w.agent_vel.norm()) < 0.6
+
+
+def test_copy_state_makes_copies_that_step_like_the_world(oracle):
+    w = make("mpe-5", num_envs=2, seed=3)
+    w.reset(seed=3)
+    gen = torch.Generator().manual_seed(0)
+    for _ in range(4):                                     # mid-episode, with velocities
+        w.step(torch.randint(0, 5, (2, 5), generator=gen))
+    sim = make("mpe-5", num_envs=6, seed=0)
+    sim.reset(seed=0)
+    oracle.copy_state(sim, w, 3)
+    a = torch.randint(0, 5, (2, 5), generator=gen)
+    w.step(a)
+    sim.step(a.repeat_interleave(3, 0))
+    torch.testing.assert_close(sim.agent_pos, w.agent_pos.repeat_interleave(3, 0))
+    assert torch.equal(sim.t, w.t.repeat_interleave(3, 0))
+
+
+def test_search_oracle_with_one_noise_free_copy_is_the_arrival_controller(oracle):
+    w = make("mpe-5", num_envs=3, seed=1)
+    obs = w.reset(seed=1)
+    o = oracle.SearchOracle(w, candidates=1, noise=0.0)
+    from masp_lite.algos.assignment import hungarian
+    goals = hungarian(w.agent_pos, w.landmark_pos, w.alive, None, 2.0)
+    goal_pos = torch.gather(w.landmark_pos, 1, goals.unsqueeze(-1).expand(3, 5, 2))
+    assert torch.equal(o.act(obs), oracle.arrival_actions(w.agent_pos, w.agent_vel, goal_pos))
+    assert int(w.t.max()) == 0                              # searching does not move the world

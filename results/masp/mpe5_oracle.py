@@ -1,0 +1,130 @@
+"""Is SR 0.99 reachable on mpe-5 at all? A model-based search that knows the world exactly.
+
+Usage (from the repository root)::
+
+    python results/masp/mpe5_oracle.py [--candidates 128] [--noise 0.5]
+                                       [--contact-weight 1] [--coverage-weight 0.5]
+
+This is a reference point, not a method of the paper: a centralized planner that reads the
+full state of every episode and simulates the future with the world's own ``step``. Each
+step it does the following:
+
+1. It assigns goals by the Hungarian algorithm on squared distances, the same reference as R_GM with
+   ``gm_reference_power=2`` (:func:`masp_lite.algos.assignment.hungarian`).
+2. It copies the episode ``K`` times (:func:`copy_state`). Each copy then runs to the end
+   of the episode under :func:`arrival_actions`, a simple velocity controller. In copy
+   ``i`` each agent's action is replaced by a random one with probability
+   ``noise * i / (K - 1)``, so copy 0 is the noise-free controller.
+3. It scores each copy at the end of the episode:
+   ``10 * covered landmarks - (sum of each landmark's distance to its nearest agent)
+   - contact_weight * contacts + coverage_weight * (landmarks covered, summed over the steps)``.
+4. It plays the first joint action of the best copy, and repeats the whole search at the next step.
+
+Ties go to the lower copy index, which has less noise. Episodes and evaluation seeds are those of
+``evaluate`` (seeds 0 1 2, 100 episodes each). Steps, SR and CR are computed by
+:mod:`masp_lite.eval`'s own functions.
+
+Written by hand because it needs the world's internal state. A generic planning library would
+need the particle world rewritten in its terms.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import torch
+
+from masp_lite import eval as E
+from masp_lite.algos.assignment import hungarian
+from masp_lite.envs import make
+from masp_lite.envs.particle import ACTION_DIRECTIONS, PHYSICS
+
+STATE = ("obstacle_pos", "agent_pos", "landmark_pos", "agent_vel", "alive", "t", "reached", "_keep")
+
+
+def arrival_actions(pos: torch.Tensor, vel: torch.Tensor, goal: torch.Tensor, max_speed: float = 2.0) -> torch.Tensor:
+    """Per agent, the action whose next velocity is nearest to the velocity that coasts to ``goal``.
+
+    Under the no-op an MPE body coasts ``v * dt / damping`` (0.4 v) before it stops, so the
+    wanted velocity is ``(goal - pos) * damping / dt``, capped at ``max_speed`` (MPE's
+    terminal speed under a constant push). The next velocity under action ``a`` is
+    ``(1 - damping) v + sensitivity * dt / mass * dir_a`` (contacts ignored).
+    """
+    p = PHYSICS
+    want = (goal - pos) * p["damping"] / p["dt"]
+    want = want * (max_speed / want.norm(dim=-1, keepdim=True).clamp(min=max_speed))
+    dirs = torch.tensor(ACTION_DIRECTIONS, dtype=vel.dtype)
+    nxt = (1 - p["damping"]) * vel.unsqueeze(-2) + p["sensitivity"] * p["dt"] / p["mass"] * dirs
+    return (nxt - want.unsqueeze(-2)).norm(dim=-1).argmin(-1)
+
+
+def copy_state(sim, world, reps: int) -> None:
+    """Make episode ``e`` of ``world`` the start of episodes ``e * reps ... e * reps + reps - 1`` of ``sim``."""
+    for name in STATE:
+        setattr(sim, name, getattr(world, name).repeat_interleave(reps, dim=0).clone())
+    sim._geometry()
+
+
+class SearchOracle:
+    """Policy interface of :mod:`masp_lite.eval` (``reset``, ``act``) around the search above."""
+
+    def __init__(self, world, candidates: int = 128, noise: float = 0.5, contact_weight: float = 1.0,
+                 coverage_weight: float = 0.5, seed: int = 0):
+        self.world, self.K, self.noise = world, int(candidates), float(noise)
+        self.contact_weight, self.coverage_weight = float(contact_weight), float(coverage_weight)
+        self.sim = make(world.scenario, num_envs=world.num_envs * self.K, seed=seed)
+        self.sim.reset(seed=seed)
+        self.generator = torch.Generator().manual_seed(seed)
+
+    def reset(self, obs) -> None:
+        pass
+
+    def act(self, obs) -> torch.Tensor:
+        w, sim, K, g = self.world, self.sim, self.K, self.generator
+        B, N = w.num_envs, w.num_agents
+        goals = hungarian(w.agent_pos, w.landmark_pos, w.alive, None, 2.0)
+        goal_pos = torch.gather(w.landmark_pos, 1, goals.unsqueeze(-1).expand(B, N, 2)).repeat_interleave(K, 0)
+        copy_state(sim, w, K)
+        p = (torch.linspace(0, self.noise, K) if K > 1 else torch.zeros(1)).repeat(B).view(B * K, 1)
+        contacts = torch.zeros(B * K, dtype=torch.float64)
+        covered = torch.zeros(B * K, dtype=torch.float64)
+        first = None
+        for _ in range(int(w.t.max()), w.horizon):
+            a = arrival_actions(sim.agent_pos, sim.agent_vel, goal_pos)
+            a = torch.where(torch.rand(a.shape, generator=g) < p, torch.randint(0, 5, a.shape, generator=g), a)
+            first = a if first is None else first
+            _, info = sim.step(a)
+            contacts += info["collisions"]
+            covered += info["covered"].sum(-1)
+        near = torch.cdist(sim.landmark_pos, sim.agent_pos).min(-1).values.sum(-1)
+        score = 10 * sim.covered.sum(-1) - near - self.contact_weight * contacts + self.coverage_weight * covered
+        best = score.view(B, K).argmax(-1)
+        return first.view(B, K, N)[torch.arange(B), best]
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scenario", default="mpe-5")
+    ap.add_argument("--candidates", type=int, default=128)
+    ap.add_argument("--noise", type=float, default=0.5)
+    ap.add_argument("--contact-weight", type=float, default=1.0)
+    ap.add_argument("--coverage-weight", type=float, default=0.5)
+    a = ap.parse_args(argv)
+    torch.set_num_threads(1)
+    start, logs = time.perf_counter(), []
+    for seed in (0, 1, 2):
+        world = make(a.scenario, num_envs=100, seed=seed)
+        oracle = SearchOracle(world, a.candidates, a.noise, a.contact_weight, a.coverage_weight, seed=seed)
+        logs.append(E._rollout(world, oracle, 100, seed)[0])
+    log = E.EpisodeLog.cat(logs)
+    sr = E.success_rate(log).numpy()
+    print(f"search oracle on {a.scenario} ({a.candidates} copies, noise {a.noise}, contact weight "
+          f"{a.contact_weight}, coverage weight {a.coverage_weight}): Steps {E.steps(log).numpy().mean():.2f}, "
+          f"SR {sr.mean():.4f}, CR {E.collision_rate(log).numpy().mean():.3f}, "
+          f"missed landmarks {int(np.rint((1 - sr) * log.covered.shape[-1]).sum())} "
+          f"of {sr.size * log.covered.shape[-1]} ({time.perf_counter() - start:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
