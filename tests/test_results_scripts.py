@@ -116,5 +116,30 @@ def test_search_oracle_with_one_noise_free_copy_is_the_arrival_controller(oracle
     from masp_lite.algos.assignment import hungarian
     goals = hungarian(w.agent_pos, w.landmark_pos, w.alive, None, 2.0)
     goal_pos = torch.gather(w.landmark_pos, 1, goals.unsqueeze(-1).expand(3, 5, 2))
-    assert torch.equal(o.act(obs), oracle.arrival_actions(w.agent_pos, w.agent_vel, goal_pos))
+    controller = oracle.arrival_actions(w.agent_pos, w.agent_vel, goal_pos)
+    assert torch.equal(o.act(obs), controller)
+    assert torch.equal(oracle.SearchOracle(w, candidates=1, noise=0.0, per_agent=True).act(obs), controller)
     assert int(w.t.max()) == 0                              # searching does not move the world
+
+
+def test_per_agent_search_only_perturbs_the_searching_agent(oracle):
+    w = make("mpe-5", num_envs=2, seed=4)
+    obs = w.reset(seed=4)
+    o = oracle.SearchOracle(w, candidates=8, noise=1.0, per_agent=True)
+    captured = {}
+    step = o.sim.step
+
+    def spy(a):
+        captured.setdefault("first", a.clone())
+        return step(a)
+    o.sim.step = spy
+    o.act(obs)
+    moves = captured["first"].view(2, 5, 8, 5)                # (world, searching agent, copy, agent)
+    from masp_lite.algos.assignment import hungarian
+    goals = hungarian(w.agent_pos, w.landmark_pos, w.alive, None, 2.0)
+    goal_pos = torch.gather(w.landmark_pos, 1, goals.unsqueeze(-1).expand(2, 5, 2))
+    controller = oracle.arrival_actions(w.agent_pos, w.agent_vel, goal_pos)
+    for k in range(5):
+        others = [j for j in range(5) if j != k]
+        assert torch.equal(moves[:, k, :, others], controller[:, None, others].expand(2, 8, 4))
+    assert not torch.equal(moves[:, :, -1].diagonal(dim1=1, dim2=2), controller)   # the noisiest copies deviate

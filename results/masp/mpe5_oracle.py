@@ -20,7 +20,12 @@ step it does the following:
    - contact_weight * contacts + coverage_weight * (landmarks covered, summed over the steps)``.
 4. It plays the first joint action of the best copy, and repeats the whole search at the next step.
 
-Ties go to the lower copy index, which has less noise. Episodes and evaluation seeds are those of
+Ties go to the lower copy index, which has less noise.
+
+With ``--per-agent`` each agent searches alone. Agent ``k`` gets its own ``K`` copies, in which
+only ``k`` takes random actions and every other agent follows the controller. ``k`` plays the
+first action of its best copy. This asks whether lookahead by each agent, with no joint choice
+of moves, is enough. It is still not decentralized in what it sees: the score is the team's. Episodes and evaluation seeds are those of
 ``evaluate`` (seeds 0 1 2, 100 episodes each). Steps, SR and CR are computed by
 :mod:`masp_lite.eval`'s own functions.
 
@@ -70,9 +75,10 @@ class SearchOracle:
     """Policy interface of :mod:`masp_lite.eval` (``reset``, ``act``) around the search above."""
 
     def __init__(self, world, candidates: int = 128, noise: float = 0.5, contact_weight: float = 1.0,
-                 coverage_weight: float = 0.5, seed: int = 0):
-        self.world, self.K, self.noise = world, int(candidates), float(noise)
+                 coverage_weight: float = 0.5, seed: int = 0, per_agent: bool = False):
+        self.world, self.noise, self.per_agent = world, float(noise), bool(per_agent)
         self.contact_weight, self.coverage_weight = float(contact_weight), float(coverage_weight)
+        self.K = int(candidates) * (world.num_agents if per_agent else 1)       # copies per episode
         self.sim = make(world.scenario, num_envs=world.num_envs * self.K, seed=seed)
         self.sim.reset(seed=seed)
         self.generator = torch.Generator().manual_seed(seed)
@@ -86,7 +92,11 @@ class SearchOracle:
         goals = hungarian(w.agent_pos, w.landmark_pos, w.alive, None, 2.0)
         goal_pos = torch.gather(w.landmark_pos, 1, goals.unsqueeze(-1).expand(B, N, 2)).repeat_interleave(K, 0)
         copy_state(sim, w, K)
-        p = (torch.linspace(0, self.noise, K) if K > 1 else torch.zeros(1)).repeat(B).view(B * K, 1)
+        C = K // N if self.per_agent else K                                     # copies per search
+        p = (torch.linspace(0, self.noise, C) if C > 1 else torch.zeros(1)).repeat(K // C)
+        if self.per_agent:                                      # search k: only agent k is noisy
+            p = p.view(N, C, 1) * torch.eye(N).view(N, 1, N)
+        p = p.reshape(1, K, -1).expand(B, K, -1).reshape(B * K, -1)
         contacts = torch.zeros(B * K, dtype=torch.float64)
         covered = torch.zeros(B * K, dtype=torch.float64)
         first = None
@@ -99,8 +109,13 @@ class SearchOracle:
             covered += info["covered"].sum(-1)
         near = torch.cdist(sim.landmark_pos, sim.agent_pos).min(-1).values.sum(-1)
         score = 10 * sim.covered.sum(-1) - near - self.contact_weight * contacts + self.coverage_weight * covered
-        best = score.view(B, K).argmax(-1)
-        return first.view(B, K, N)[torch.arange(B), best]
+        if not self.per_agent:
+            best = score.view(B, K).argmax(-1)
+            return first.view(B, K, N)[torch.arange(B), best]
+        best = score.view(B, N, C).argmax(-1)                                   # (B, N): agent k's best copy
+        moves = first.view(B, N, C, N)
+        b, k = torch.arange(B).view(B, 1), torch.arange(N).view(1, N)
+        return moves[b, k, best, k]
 
 
 def main(argv=None):
@@ -110,16 +125,19 @@ def main(argv=None):
     ap.add_argument("--noise", type=float, default=0.5)
     ap.add_argument("--contact-weight", type=float, default=1.0)
     ap.add_argument("--coverage-weight", type=float, default=0.5)
+    ap.add_argument("--per-agent", action="store_true", help="each agent searches its own moves alone")
     a = ap.parse_args(argv)
     torch.set_num_threads(1)
     start, logs = time.perf_counter(), []
     for seed in (0, 1, 2):
         world = make(a.scenario, num_envs=100, seed=seed)
-        oracle = SearchOracle(world, a.candidates, a.noise, a.contact_weight, a.coverage_weight, seed=seed)
+        oracle = SearchOracle(world, a.candidates, a.noise, a.contact_weight, a.coverage_weight, seed=seed,
+                              per_agent=a.per_agent)
         logs.append(E._rollout(world, oracle, 100, seed)[0])
     log = E.EpisodeLog.cat(logs)
     sr = E.success_rate(log).numpy()
-    print(f"search oracle on {a.scenario} ({a.candidates} copies, noise {a.noise}, contact weight "
+    print(f"search oracle on {a.scenario} ({a.candidates} copies{' per agent' if a.per_agent else ''}, "
+          f"noise {a.noise}, contact weight "
           f"{a.contact_weight}, coverage weight {a.coverage_weight}): Steps {E.steps(log).numpy().mean():.2f}, "
           f"SR {sr.mean():.4f}, CR {E.collision_rate(log).numpy().mean():.3f}, "
           f"missed landmarks {int(np.rint((1 - sr) * log.covered.shape[-1]).sum())} "
