@@ -8,15 +8,25 @@ import torch
 
 from masp_lite.envs import make
 
-SCRIPT = Path(__file__).resolve().parents[1] / "results" / "masp" / "mpe5_failures.py"
+SCRIPTS = Path(__file__).resolve().parents[1] / "results" / "masp"
+
+
+def _load(name):
+    """Import ``results/masp/NAME.py`` (scripts, not a package) as a module."""
+    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 @pytest.fixture(scope="module")
 def failures():
-    spec = importlib.util.spec_from_file_location("mpe5_failures", SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return _load("mpe5_failures")
+
+
+@pytest.fixture(scope="module")
+def oracle():
+    return _load("mpe5_oracle")
 
 
 def _push_x(steps):
@@ -70,17 +80,6 @@ def test_landmark_geometry_nearest_landmark_and_obstacle(failures):
     assert near_obst[0].tolist() == pytest.approx([0.5, (0.2 ** 2 + 0.5 ** 2) ** 0.5, 0.3])
     _, none = failures.landmark_geometry(landmarks, obstacles[:, :0])
     assert torch.isinf(none).all()
-
-
-ORACLE = Path(__file__).resolve().parents[1] / "results" / "masp" / "mpe5_oracle.py"
-
-
-@pytest.fixture(scope="module")
-def oracle():
-    spec = importlib.util.spec_from_file_location("mpe5_oracle", ORACLE)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def test_arrival_controller_brings_one_agent_to_rest_on_its_landmark(oracle):
