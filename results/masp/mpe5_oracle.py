@@ -102,7 +102,8 @@ class SearchOracle:
         first = None
         for _ in range(int(w.t.max()), w.horizon):
             a = arrival_actions(sim.agent_pos, sim.agent_vel, goal_pos)
-            a = torch.where(torch.rand(a.shape, generator=g) < p, torch.randint(0, len(ACTION_DIRECTIONS), a.shape, generator=g), a)
+            noisy = torch.rand(a.shape, generator=g) < p
+            a = torch.where(noisy, torch.randint(0, len(ACTION_DIRECTIONS), a.shape, generator=g), a)
             first = a if first is None else first
             _, info = sim.step(a)
             contacts += info["collisions"]
