@@ -197,14 +197,13 @@ def main(argv=None):
         m = ts == T
         print(f"{T:3d}  {m.sum():8d}  {st[m].mean():5.2f}  {sr[m].mean():.3f}  {(sr[m] < 1).sum():d}")
     print("uncovered at the end:", sum(kinds.values()), dict(kinds))
-    miss = np.concatenate(missed)
-    for name, dist, edges in (("nearest other landmark", np.concatenate(near_lm), [0, 0.3, 0.5, 1.0, np.inf]),
-                              ("nearest obstacle centre", np.concatenate(near_obst), [0, 0.25, 0.3, 0.4, 0.6, np.inf])):
+    miss, dl, do = np.concatenate(missed), np.concatenate(near_lm), np.concatenate(near_obst)
+    for name, dist, edges in (("nearest other landmark", dl, [0, 0.3, 0.5, 1.0, np.inf]),
+                              ("nearest obstacle centre", do, [0, 0.25, 0.3, 0.4, 0.6, np.inf])):
         print(f"missed / landmarks by {name} (m):")
         for lo, hi in zip(edges[:-1], edges[1:]):
             m = (dist >= lo) & (dist < hi)
             print(f"  [{lo:.2f}, {hi:.2f}): {miss[m].sum():3d} / {m.sum():4d} = {miss[m].mean() if m.any() else 0:.3f}")
-    dl, do = np.concatenate(near_lm), np.concatenate(near_obst)
     hard, far = (dl < 0.3) | (do < 0.25), (dl >= 0.5) & (do >= 0.5)
     print(f"missed with another landmark under 0.3 m or an obstacle centre under 0.25 m: "
           f"{miss[hard].sum()} of {miss.sum()}; with both over 0.5 m: {miss[far].sum()} / {far.sum()}")
