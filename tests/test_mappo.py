@@ -182,3 +182,27 @@ def test_executor_reward_distance_to_reach_edge():
         MAPPOConfig(distance_to="middle")
     with pytest.raises(ValueError, match="group_order"):
         MAPPOConfig(group_order="closest")
+
+
+def test_complete_bonus_and_the_final_step_weight():
+    from masp_lite.algos.rewards import complete_bonus
+    pos = torch.tensor([[[0.0, 0.0], [3.0, 0.0]]])
+    goal = torch.tensor([[[0.1, 0.0], [3.0, 2.0]]])
+    assert complete_bonus(pos, goal, None, 0.15).tolist() == [[1.0, 0.0]]
+    assert complete_bonus(pos, goal, torch.tensor([[False, True]]), 0.15).tolist() == [[0.0, 0.0]]
+    with pytest.raises(ValueError, match="final_bonus_coef"):
+        MAPPOConfig(final_bonus_coef=-1)
+    with pytest.raises(ValueError, match="hard_layouts"):
+        MAPPOConfig(hard_layouts=1.5)
+
+
+def test_final_bonus_changes_only_the_last_steps_executor_reward():
+    from masp_lite.algos.masp_trainer import MASPTrainer
+    base = dict(num_envs=4, width=8)
+    plain = MASPTrainer("mpe-5", MAPPOConfig(**base), seed=2)
+    final = MASPTrainer("mpe-5", MAPPOConfig(**base, final_bonus_coef=3.0), seed=2)
+    (_, a, _), (_, b, _) = plain.collect(), final.collect()
+    diff = b["rewards"] - a["rewards"]                                        # (T, B, N)
+    assert torch.equal(diff[:-1], torch.zeros_like(diff[:-1]))
+    on_goal = a["rewards"][-1] > 0.5      # R_b = 1 outweighs R_d there; contacts can hide a few
+    assert set(diff[-1].unique().tolist()) <= {0.0, 3.0} and bool((diff[-1][on_goal] == 3.0).all())

@@ -73,6 +73,16 @@ class MAPPOConfig:
     neighbour on a close landmark or an obstacle beside it pushes it off)."""
     collision_coef: float = 1.0
     """gamma in R_CAE: weight of the collision penalty R_c."""
+    final_bonus_coef: float = 0.0
+    """Extra weight of R_b at an episode's last step: ``R_CAE += final_bonus_coef * R_b``
+    there (0: the paper's R_CAE unchanged). The fixed-team SR counts the landmarks covered
+    at the end (:func:`masp_lite.eval.success_rate`); this term makes being on the goal
+    then worth more than at any earlier step."""
+    hard_layouts: float = 0.0
+    """Fraction of training worlds whose layout is made harder each rollout
+    (:func:`masp_lite.algos.curriculum.harden_layouts`: one landmark moved next to another
+    landmark or an obstacle, the layouts where mpe-5's misses are). 0: the scenario's own
+    uniform spawns, as in the paper."""
     width: int = 32
     """Feature width L of every network."""
     group_size: int = 3
@@ -127,6 +137,10 @@ class MAPPOConfig:
             raise ValueError(f"distance_to: expected 'centre' or 'reach', got {self.distance_to!r}")
         if self.gm_decode not in ("joint", "independent"):
             raise ValueError(f"gm_decode: expected 'joint' or 'independent', got {self.gm_decode!r}")
+        if not float(self.final_bonus_coef) >= 0:
+            raise ValueError(f"final_bonus_coef: expected a number >= 0, got {self.final_bonus_coef!r}")
+        if not 0.0 <= float(self.hard_layouts) <= 1.0:
+            raise ValueError(f"hard_layouts: expected a fraction in [0, 1], got {self.hard_layouts!r}")
         for name in ("lr", "clip", "huber_delta", "max_grad_norm"):
             if not float(getattr(self, name)) > 0:
                 raise ValueError(f"{name}: expected a positive number, got {getattr(self, name)!r}")

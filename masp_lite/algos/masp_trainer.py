@@ -32,8 +32,9 @@ import torch
 from ..envs import make
 from ..nets.decoding import conditional_logits, sequential_sample
 from ..nets.policies import MASPNets
+from .curriculum import harden_layouts
 from .mappo import MAPPOConfig, RolloutStorage, ValueNorm, gae, ppo_update
-from .rewards import executor_reward, goal_matcher_reward
+from .rewards import complete_bonus, executor_reward, goal_matcher_reward
 
 __all__ = ["MASPTrainer", "sample", "OBS_KEYS"]
 
@@ -76,6 +77,9 @@ class MASPTrainer:
         """One episode in every world; returns (gm data, cae data, episode stats)."""
         w, n, cfg, g = self.world, self.nets, self.cfg, self.generator
         obs = w.reset()
+        if cfg.hard_layouts:
+            harden_layouts(w, cfg.hard_layouts, g)
+            obs = w.observe()
         gm, cae = RolloutStorage(), RolloutStorage()
         goals = None
         cov, col = [obs["covered"].all(-1)], []
@@ -103,6 +107,8 @@ class MASPTrainer:
             r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
                                 w.scenario.world_size, cfg.bonus_coef, cfg.distance_coef, cfg.collision_coef,
                                 cfg.distance_to)
+            if t == self.horizon - 1 and cfg.final_bonus_coef:  # the step the success rate counts
+                r = r + cfg.final_bonus_coef * complete_bonus(obs["agent_pos"], goal_pos, alive, self.reach)
             cae.add(**snap, goals=goals, perm=perm, actions=actions, logp=logp, values=v, rewards=r, mask=alive)
             cov.append(info["covered"].all(-1))
             col.append(info["collisions"])

@@ -40,7 +40,7 @@ import torch
 
 from .assignment import assignment_cost, hungarian
 
-__all__ = ["goal_matcher_reward", "executor_reward", "repeat_counts"]
+__all__ = ["goal_matcher_reward", "executor_reward", "complete_bonus", "repeat_counts"]
 
 
 def repeat_counts(goals: torch.Tensor, alive: torch.Tensor, num_goals: int) -> torch.Tensor:
@@ -88,9 +88,16 @@ def executor_reward(agent_pos, goal_pos, agent_collisions, alive, reach: float, 
     if distance_to not in ("centre", "reach"):
         raise ValueError(f"distance_to: expected 'centre' or 'reach', got {distance_to!r}")
     dist = (goal_pos - agent_pos).norm(dim=-1)
-    r_b = (dist < reach).to(agent_pos.dtype)
+    r_b = complete_bonus(agent_pos, goal_pos, None, reach)
     gap = dist if distance_to == "centre" else (dist - reach).clamp(min=0)
     r_d = -gap / (world_size / 2)
     r_c = -agent_collisions.to(agent_pos.dtype)
     r = alpha * r_b + beta * r_d + gamma * r_c
     return torch.where(alive, r, torch.zeros_like(r))
+
+
+def complete_bonus(agent_pos, goal_pos, alive, reach: float) -> torch.Tensor:
+    """``R_b`` (B, N): 1 where an agent is within ``reach`` of its assigned goal, else 0
+    (0 for dropped agents when ``alive`` is given)."""
+    r_b = ((goal_pos - agent_pos).norm(dim=-1) < reach).to(agent_pos.dtype)
+    return r_b if alive is None else torch.where(alive, r_b, torch.zeros_like(r_b))
