@@ -218,6 +218,42 @@ def test_nearest_group_order_ignores_the_random_order_and_round_trips(tmp_path):
     torch.testing.assert_close(loaded.cae_logits(loaded.cae_inputs(obs, goals, random_permutation(2, 20))), a)
 
 
+def test_neighbour_goal_features_by_hand():
+    from masp_lite.nets.policies import neighbour_goal_features
+    pos = torch.tensor([[[0.0, 0.0], [1.0, 0.0]]])
+    goal = torch.tensor([[[0.0, 0.5], [1.0, 0.2]]])
+    f = neighbour_goal_features(pos, goal)                                     # (1, 2, 2, 3)
+    assert f.shape == (1, 2, 2, 3)
+    torch.testing.assert_close(f[0, 0, 0], torch.tensor([0.0, 0.5, 0.5]))    # own goal, 0.5 m to go
+    g = torch.tensor([1.0, 0.2]) / torch.tensor([1.0, 0.2]).norm()           # clipped at SENSE = 1 m
+    torch.testing.assert_close(f[0, 0, 1], torch.cat([g, torch.tensor([0.2])]))
+    torch.testing.assert_close(f[0, 1, 0], torch.tensor([-1.0, 0.5, 0.5]) / torch.tensor([1.25 ** 0.5, 1.25 ** 0.5, 1.0]))
+
+
+def test_with_neighbour_goals_acts_the_same_and_round_trips(tmp_path):
+    from masp_lite.checkpoints import load_weights, save_weights
+    torch.manual_seed(3)
+    nets = MASPNets(width=8)
+    wide = nets.with_neighbour_goals()
+    assert wide.arch == {**nets.arch, "neighbour_goals": True} and "neighbour_goals" not in nets.arch
+    w = make("mpe-20", num_envs=2, seed=0)
+    obs = w.reset()
+    goals = torch.randperm(20).repeat(2, 1)
+    perm = random_permutation(2, 20, torch.Generator().manual_seed(1))
+    inputs = wide.cae_inputs(obs, goals, perm)
+    assert inputs[0].shape == (2, 20, 20, 9)
+    torch.testing.assert_close(wide.cae_logits(inputs), nets.cae_logits(nets.cae_inputs(obs, goals, perm)))
+    with pytest.raises(ValueError, match="already"):
+        wide.with_neighbour_goals()
+    with pytest.raises(ValueError, match="neighbour_goals"):
+        MASPNets(neighbour_goals="yes")
+    path = tmp_path / "w.pt"
+    save_weights(path, wide, "mpe-20")
+    loaded, _ = load_weights(str(path))
+    assert loaded.arch == wide.arch
+    torch.testing.assert_close(loaded.cae_logits(inputs), wide.cae_logits(inputs))
+
+
 def test_policy_is_seeded_and_respects_dead_agents(tmp_path):
     from masp_lite.checkpoints import save_weights
     torch.manual_seed(6)

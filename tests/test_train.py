@@ -178,3 +178,14 @@ def test_ship_run_records_the_earlier_stages(tmp_path, monkeypatch):
     assert json.loads((tmp_path / "ck" / "manifest.json").read_text())["mpe-5"]["note"] == "two stages"
     nets, _ = load_weights(None, scenario="mpe-5")
     assert nets.arch["width"] == 8 and second["iterations"] == 2
+
+
+def test_init_widens_weights_to_see_the_neighbours_goals(tmp_path):
+    cfg = MAPPOConfig(**{**TINY, "updates": 1})
+    train("mpe-5", cfg, tmp_path / "base", seed=0, progress=False)
+    wide_cfg = MAPPOConfig(**{**TINY, "updates": 1, "neighbour_goals": True})
+    train("mpe-5", wide_cfg, tmp_path / "wide", seed=0, progress=False, init=tmp_path / "base" / "weights.pt")
+    nets, _ = load_weights(str(tmp_path / "wide" / "weights.pt"), any_scenario=True)
+    assert nets.arch.get("neighbour_goals") is True
+    with pytest.raises(ValueError, match="differs from the configured"):   # the other way round is refused
+        train("mpe-5", cfg, tmp_path / "narrow", seed=0, progress=False, init=tmp_path / "wide" / "weights.pt")

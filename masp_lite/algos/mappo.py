@@ -96,6 +96,9 @@ class MAPPOConfig:
     group_order: str = "random"
     """Order of agent ``k``'s others before the group division: ``random`` (the paper) or
     ``nearest`` (by distance from ``k``; see :class:`masp_lite.nets.policies.MASPNets`)."""
+    neighbour_goals: bool = False
+    """The executor also sees each neighbour's assigned goal (``MASPNets(neighbour_goals=...)``,
+    :func:`masp_lite.nets.policies.neighbour_goal_features`); off in the paper's reading."""
     gm_decode: str = "joint"
     """How training samples goals from the Goal Matcher (:mod:`masp_lite.nets.decoding`):
     ``joint`` draws distinct goals agent by agent in a random order; ``independent`` lets
@@ -129,6 +132,8 @@ class MAPPOConfig:
         for name in ("gamma", "gae_lambda", "gm_gamma"):
             if not 0.0 <= float(getattr(self, name)) <= 1.0:
                 raise ValueError(f"{name}: expected a number in [0, 1], got {getattr(self, name)!r}")
+        if not isinstance(self.neighbour_goals, bool):
+            raise ValueError(f"neighbour_goals: expected True or False, got {self.neighbour_goals!r}")
         if not isinstance(self.train_executor, bool):
             raise ValueError(f"train_executor: expected True or False, got {self.train_executor!r}")
         if self.group_order not in ("random", "nearest"):

@@ -62,7 +62,7 @@ class MASPTrainer:
         torch.manual_seed(self.seed)  # network initialisation
         self.nets = MASPNets(width=cfg.width, group_size=cfg.group_size, gcn_layers=cfg.gcn_layers,
                              obstacles_seen=cfg.obstacles_seen, global_step=cfg.global_step,
-                             group_order=cfg.group_order)
+                             group_order=cfg.group_order, neighbour_goals=cfg.neighbour_goals)
         n = self.nets
         self.gm_opt = torch.optim.Adam(list(n.gm.parameters()) + list(n.gm_critic.parameters()), lr=cfg.lr, eps=1e-5)
         self.cae_opt = torch.optim.Adam(list(n.cae.parameters()) + list(n.cae_critic.parameters()), lr=cfg.lr, eps=1e-5)

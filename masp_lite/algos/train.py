@@ -18,7 +18,9 @@ Trains MASP (:class:`~masp_lite.algos.masp_trainer.MASPTrainer`) and writes, in 
 
 ``--set`` takes any :class:`~masp_lite.algos.mappo.MAPPOConfig` field or scenario override
 (``--set updates=300 --set num_envs=32``). ``--init PATH`` starts from a weights file
-(fine-tuning, e.g. mpe-50 from the mpe-20 weights). Refused with one clear error, nothing
+(fine-tuning, e.g. mpe-50 from the mpe-20 weights); weights without ``neighbour_goals``
+start a run that has it through :meth:`~masp_lite.nets.policies.MASPNets.with_neighbour_goals`
+(same behaviour, the new inputs weighted 0). Refused with one clear error, nothing
 overwritten: an unknown method, field or value; ``--resume`` without ``state.pt``; an
 existing ``state.pt`` without ``--resume``; a corrupt state; a state trained with another
 scenario or configuration (only ``updates`` may grow on resume).
@@ -155,6 +157,8 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
         rows = _read_csv(out / "progress.csv", trainer.iterations)
     elif init is not None:
         nets, rec = load_weights(init, any_scenario=True)
+        if nets.arch != trainer.nets.arch and {**nets.arch, "neighbour_goals": True} == trainer.nets.arch:
+            nets = nets.with_neighbour_goals()  # same behaviour, new inputs weighted 0
         if nets.arch != trainer.nets.arch:
             raise ValueError(f"--init {init}: architecture {nets.arch} differs from the configured {trainer.nets.arch}")
         trainer.nets.load_state_dict(nets.state_dict())

@@ -38,7 +38,7 @@ from .encoders import CrossEncoder, SelfEncoder, mlp
 from .fusion import GroupInformationFusion
 
 __all__ = ["GoalMatcher", "GoalMatcherCritic", "CoordinatedActionExecutor", "ExecutorCritic",
-           "pair_features", "goal_features", "obstacle_features", "global_features", "gm_inputs",
+           "pair_features", "neighbour_goal_features", "goal_features", "obstacle_features", "global_features", "gm_inputs",
            "MASPNets", "MASPPolicy", "MAX_SPEED", "SENSE"]
 
 MAX_SPEED = 2.0
@@ -47,6 +47,7 @@ SENSE = 1.0
 """Metres at which neighbour and obstacle vectors are clipped."""
 
 PAIR_FEATURES, GOAL_FEATURES, OBSTACLE_FEATURES, GLOBAL_FEATURES = 6, 6, 3, 3
+NEIGHBOUR_GOAL_FEATURES = 3
 
 
 def _clip(rel: torch.Tensor, radius: float) -> tuple[torch.Tensor, torch.Tensor]:
@@ -65,6 +66,18 @@ def pair_features(pos: torch.Tensor, vel: torch.Tensor) -> torch.Tensor:
     N = pos.shape[1]
     eye = torch.eye(N, dtype=pos.dtype, device=pos.device).expand(*pos.shape[:1], N, N).unsqueeze(-1)
     return torch.cat([rel / SENSE, d.clamp(max=SENSE) / SENSE, dv, eye], dim=-1)
+
+
+def neighbour_goal_features(pos: torch.Tensor, goal_pos: torch.Tensor) -> torch.Tensor:
+    """(B, N, N, 3): agent ``j``'s assigned goal as seen from agent ``k``, at ``[b, k, j]``.
+
+    ``[(g_j - p_k) / SENSE (2, clipped to norm 1), min(|g_j - p_j|, SENSE) / SENSE]``: where
+    ``j`` is heading relative to ``k``, and how far ``j`` still has to go (0: ``j`` sits on
+    its goal). Appended to :func:`pair_features` when ``MASPNets(neighbour_goals=True)``.
+    """
+    rel, _ = _clip(goal_pos.unsqueeze(1) - pos.unsqueeze(2), SENSE)
+    left = (goal_pos - pos).norm(dim=-1).clamp(max=SENSE) / SENSE
+    return torch.cat([rel / SENSE, left.unsqueeze(1).expand(*rel.shape[:3]).unsqueeze(-1)], dim=-1)
 
 
 def goal_features(pos: torch.Tensor, vel: torch.Tensor, goal_pos: torch.Tensor) -> torch.Tensor:
@@ -188,9 +201,10 @@ class GoalMatcherCritic(_GraphEncoders):
 class CoordinatedActionExecutor(nn.Module):
     """Low-level actor: ``forward(pair, groups, alive, goal_f, obstacle_f) -> logits`` (B, N, 5)."""
 
-    def __init__(self, width: int = 32, gcn_layers: int = 1, obstacles_seen: int = 2):
+    def __init__(self, width: int = 32, gcn_layers: int = 1, obstacles_seen: int = 2, neighbour_goals: bool = False):
         super().__init__()
-        self.fusion = GroupInformationFusion(PAIR_FEATURES, width, gcn_layers)
+        pair = PAIR_FEATURES + (NEIGHBOUR_GOAL_FEATURES if neighbour_goals else 0)
+        self.fusion = GroupInformationFusion(pair, width, gcn_layers)
         self.goal_embed = mlp([GOAL_FEATURES, width], last_activation=True)
         self.obstacle_embed = mlp([OBSTACLE_FEATURES * obstacles_seen, width], last_activation=True)
         self.head = mlp([3 * width, width, width, NUM_ACTIONS])
@@ -228,10 +242,19 @@ class MASPNets(nn.Module):
     :func:`~masp_lite.nets.fusion.nearest_order`). Files saved before ``group_order``
     existed load as ``"random"``, and ``arch`` lists ``group_order`` only when it is not
     ``"random"``, so their records stay equal.
+    ``neighbour_goals``: the executor's node of agent ``j`` (seen from ``k``) also holds
+    ``j``'s assigned goal (:func:`neighbour_goal_features`). The paper's nodes "contain the
+    state information of the agents" without a list; in a goal-conditioned task an
+    agent's goal is part of its state, and knowing whether a neighbour is settled on a
+    goal beside one's own is what avoiding a late push needs. Off (``False``, not listed in
+    ``arch``) for every file saved before the option existed. :meth:`with_neighbour_goals`
+    turns a network without it into one with it that acts identically (zero weights on the
+    new inputs), a starting point for fine-tuning.
     """
 
     def __init__(self, width: int = 32, group_size: int = 3, gcn_layers: int = 1,
-                 obstacles_seen: int = 2, global_step: int = 3, group_order: str = "random"):
+                 obstacles_seen: int = 2, global_step: int = 3, group_order: str = "random",
+                 neighbour_goals: bool = False):
         super().__init__()
         for name, v, low in (("width", width, 1), ("group_size", group_size, 2), ("gcn_layers", gcn_layers, 1),
                              ("obstacles_seen", obstacles_seen, 1), ("global_step", global_step, 1)):
@@ -241,12 +264,29 @@ class MASPNets(nn.Module):
             raise ValueError(f"group_order: expected 'random' or 'nearest', got {group_order!r}")
         self.arch = dict(width=width, group_size=group_size, gcn_layers=gcn_layers,
                          obstacles_seen=obstacles_seen, global_step=global_step)
+        if not isinstance(neighbour_goals, bool):
+            raise ValueError(f"neighbour_goals: expected True or False, got {neighbour_goals!r}")
         if group_order != "random":
             self.arch["group_order"] = group_order
+        if neighbour_goals:
+            self.arch["neighbour_goals"] = True
         self.gm = GoalMatcher(width)
         self.gm_critic = GoalMatcherCritic(width)
-        self.cae = CoordinatedActionExecutor(width, gcn_layers, obstacles_seen)
+        self.cae = CoordinatedActionExecutor(width, gcn_layers, obstacles_seen, neighbour_goals)
         self.cae_critic = ExecutorCritic(width)
+
+    def with_neighbour_goals(self) -> "MASPNets":
+        """A copy with ``neighbour_goals`` on that acts exactly like ``self``: the fusion's
+        input layer gets zero weights for the new inputs, every other weight is copied."""
+        if self.arch.get("neighbour_goals", False):
+            raise ValueError("with_neighbour_goals: these networks already see the neighbours' goals")
+        new = MASPNets(**self.arch, neighbour_goals=True)
+        state = self.state_dict()
+        key = "cae.fusion.embed.0.weight"
+        w = state[key]
+        state[key] = torch.cat([w, w.new_zeros(w.shape[0], NEIGHBOUR_GOAL_FEATURES)], dim=1)
+        new.load_state_dict(state)
+        return new
 
     def gm_logits(self, obs: dict, scale: float, goal_mask: torch.Tensor | None = None) -> torch.Tensor:
         a, g, dist = gm_inputs(obs, scale)
@@ -266,7 +306,10 @@ class MASPNets(nn.Module):
         if self.arch.get("group_order", "random") == "nearest":
             perm = nearest_order(pos, obs["alive"])
         goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos))
-        return (pair_features(pos, vel), group_division(perm, self.arch["group_size"]), obs["alive"],
+        pair = pair_features(pos, vel)
+        if self.arch.get("neighbour_goals", False):
+            pair = torch.cat([pair, neighbour_goal_features(pos, goal_pos)], dim=-1)
+        return (pair, group_division(perm, self.arch["group_size"]), obs["alive"],
                 goal_features(pos, vel, goal_pos),
                 obstacle_features(pos, obs["obstacle_pos"], self.arch["obstacles_seen"]))
 
