@@ -194,6 +194,8 @@ def test_complete_bonus_and_the_final_step_weight():
         MAPPOConfig(final_bonus_coef=-1)
     with pytest.raises(ValueError, match="hard_layouts"):
         MAPPOConfig(hard_layouts=1.5)
+    with pytest.raises(ValueError, match="team_bonus"):
+        MAPPOConfig(team_bonus=-0.1)
 
 
 def test_final_bonus_changes_only_the_last_steps_executor_reward():
@@ -206,3 +208,17 @@ def test_final_bonus_changes_only_the_last_steps_executor_reward():
     assert torch.equal(diff[:-1], torch.zeros_like(diff[:-1]))
     on_goal = a["rewards"][-1] > 0.5      # R_b = 1 outweighs R_d there; contacts can hide a few
     assert set(diff[-1].unique().tolist()) <= {0.0, 3.0} and bool((diff[-1][on_goal] == 3.0).all())
+
+
+def test_team_bonus_moves_r_b_to_the_team_mean_and_keeps_the_team_total():
+    from masp_lite.algos.masp_trainer import MASPTrainer
+    base = dict(num_envs=8, width=8)
+    own = MASPTrainer("mpe-5", MAPPOConfig(**base), seed=5)
+    team = MASPTrainer("mpe-5", MAPPOConfig(**base, team_bonus=1.0), seed=5)
+    (_, a, _), (_, b, _) = own.collect(), team.collect()
+    diff = b["rewards"] - a["rewards"]                                        # (T, B, N)
+    torch.testing.assert_close(diff.sum(-1), torch.zeros_like(diff.sum(-1)), atol=1e-5, rtol=0)
+    assert diff.abs().max() > 0.1                                   # someone's bonus was shared
+    on_goal = (a["rewards"] > 0.5).float()                          # R_b = 1 there (see above)
+    ok = (on_goal.sum(-1) == 0) | (on_goal.sum(-1) == 5)            # nobody or everybody on goal
+    assert bool((diff[ok].abs() < 1e-6).all())

@@ -73,6 +73,11 @@ class MAPPOConfig:
     neighbour on a close landmark or an obstacle beside it pushes it off)."""
     collision_coef: float = 1.0
     """gamma in R_CAE: weight of the collision penalty R_c."""
+    team_bonus: float = 0.0
+    """Share of R_b pooled over the team: agent ``k``'s bonus is
+    ``(1 - team_bonus) * R_b^k + team_bonus * mean_j R_b^j`` (alive agents). 0: each agent's
+    own bonus (after MAGE-X). With a share, an agent that pushes a neighbour off its goal
+    loses part of the neighbour's bonus too, not only its own contact penalty."""
     final_bonus_coef: float = 0.0
     """Extra weight of R_b at an episode's last step: ``R_CAE += final_bonus_coef * R_b``
     there (0: the paper's R_CAE unchanged). The fixed-team SR counts the landmarks covered
@@ -142,6 +147,8 @@ class MAPPOConfig:
             raise ValueError(f"distance_to: expected 'centre' or 'reach', got {self.distance_to!r}")
         if self.gm_decode not in ("joint", "independent"):
             raise ValueError(f"gm_decode: expected 'joint' or 'independent', got {self.gm_decode!r}")
+        if not 0.0 <= float(self.team_bonus) <= 1.0:
+            raise ValueError(f"team_bonus: expected a fraction in [0, 1], got {self.team_bonus!r}")
         if not float(self.final_bonus_coef) >= 0:
             raise ValueError(f"final_bonus_coef: expected a number >= 0, got {self.final_bonus_coef!r}")
         if not 0.0 <= float(self.hard_layouts) <= 1.0:

@@ -107,8 +107,13 @@ class MASPTrainer:
             r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
                                 w.scenario.world_size, cfg.bonus_coef, cfg.distance_coef, cfg.collision_coef,
                                 cfg.distance_to)
-            if t == self.horizon - 1 and cfg.final_bonus_coef:  # the step the success rate counts
-                r = r + cfg.final_bonus_coef * complete_bonus(obs["agent_pos"], goal_pos, alive, self.reach)
+            if cfg.team_bonus or (t == self.horizon - 1 and cfg.final_bonus_coef):
+                r_b = complete_bonus(obs["agent_pos"], goal_pos, alive, self.reach)
+                if cfg.team_bonus:  # move a share of R_b from the agent to the team mean
+                    team = r_b.sum(-1, keepdim=True) / alive.sum(-1, keepdim=True).clamp(min=1)
+                    r = r + cfg.bonus_coef * cfg.team_bonus * torch.where(alive, team - r_b, torch.zeros_like(r_b))
+                if t == self.horizon - 1 and cfg.final_bonus_coef:  # the step the success rate counts
+                    r = r + cfg.final_bonus_coef * r_b
             cae.add(**snap, goals=goals, perm=perm, actions=actions, logp=logp, values=v, rewards=r, mask=alive)
             cov.append(info["covered"].all(-1))
             col.append(info["collisions"])
