@@ -227,7 +227,8 @@ def test_neighbour_goal_features_by_hand():
     torch.testing.assert_close(f[0, 0, 0], torch.tensor([0.0, 0.5, 0.5]))    # own goal, 0.5 m to go
     g = torch.tensor([1.0, 0.2]) / torch.tensor([1.0, 0.2]).norm()           # clipped at SENSE = 1 m
     torch.testing.assert_close(f[0, 0, 1], torch.cat([g, torch.tensor([0.2])]))
-    torch.testing.assert_close(f[0, 1, 0], torch.tensor([-1.0, 0.5, 0.5]) / torch.tensor([1.25 ** 0.5, 1.25 ** 0.5, 1.0]))
+    far = torch.tensor([-1.0, 0.5]) / 1.25 ** 0.5                            # 1.12 m away: clipped
+    torch.testing.assert_close(f[0, 1, 0], torch.cat([far, torch.tensor([0.5])]))
 
 
 def test_with_neighbour_goals_acts_the_same_and_round_trips(tmp_path):

@@ -38,7 +38,8 @@ from .encoders import CrossEncoder, SelfEncoder, mlp
 from .fusion import GroupInformationFusion
 
 __all__ = ["GoalMatcher", "GoalMatcherCritic", "CoordinatedActionExecutor", "ExecutorCritic",
-           "pair_features", "neighbour_goal_features", "goal_features", "obstacle_features", "global_features", "gm_inputs",
+           "pair_features", "neighbour_goal_features", "goal_features", "obstacle_features", "global_features",
+           "gm_inputs",
            "MASPNets", "MASPPolicy", "MAX_SPEED", "SENSE"]
 
 MAX_SPEED = 2.0
