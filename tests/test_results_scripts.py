@@ -1,4 +1,4 @@
-"""The analysis script behind results/masp/README.md's mpe-5 section agrees with the world's dynamics."""
+"""The analysis scripts behind results/masp/README.md agree with the world's dynamics; its weight files check out."""
 import importlib.util
 from pathlib import Path
 
@@ -142,3 +142,18 @@ def test_per_agent_search_only_perturbs_the_searching_agent(oracle):
         others = [j for j in range(5) if j != k]
         assert torch.equal(moves[:, k, :, others], controller[:, None, others].expand(2, 8, 4))
     assert not torch.equal(moves[:, :, -1].diagonal(dim1=1, dim2=2), controller)   # the noisiest copies deviate
+
+
+@pytest.mark.parametrize("folder", ["stage1", "seeds"])
+def test_committed_training_seed_weights_match_their_manifests_and_load(folder):
+    import hashlib
+    import json
+
+    from masp_lite.checkpoints import load_weights
+    files = sorted((SCRIPTS / folder).glob("*.pt"))
+    assert files
+    for pt in files:
+        manifest = json.loads(pt.with_suffix(".manifest.json").read_text())
+        assert manifest["weights_sha256"] == hashlib.sha256(pt.read_bytes()).hexdigest(), pt.name
+        nets, rec = load_weights(str(pt), scenario=manifest["scenario"])
+        assert nets.arch == manifest["arch"] and rec["scenario"] == manifest["scenario"]
