@@ -198,27 +198,27 @@ def test_complete_bonus_and_the_final_step_weight():
         MAPPOConfig(team_bonus=-0.1)
 
 
-def test_final_bonus_changes_only_the_last_steps_executor_reward():
+def _executor_rewards_with(seed, num_envs, **option):
+    """Executor rewards (T, B, N) of one rollout without and with a reward option, same seed."""
     from masp_lite.algos.masp_trainer import MASPTrainer
-    base = dict(num_envs=4, width=8)
-    plain = MASPTrainer("mpe-5", MAPPOConfig(**base), seed=2)
-    final = MASPTrainer("mpe-5", MAPPOConfig(**base, final_bonus_coef=3.0), seed=2)
-    (_, a, _), (_, b, _) = plain.collect(), final.collect()
-    diff = b["rewards"] - a["rewards"]                                        # (T, B, N)
+    base = dict(num_envs=num_envs, width=8)
+    (_, a, _), (_, b, _) = (MASPTrainer("mpe-5", MAPPOConfig(**base, **o), seed=seed).collect() for o in ({}, option))
+    return a["rewards"], b["rewards"]
+
+
+def test_final_bonus_changes_only_the_last_steps_executor_reward():
+    a, b = _executor_rewards_with(2, 4, final_bonus_coef=3.0)
+    diff = b - a                                                              # (T, B, N)
     assert torch.equal(diff[:-1], torch.zeros_like(diff[:-1]))
-    on_goal = a["rewards"][-1] > 0.5      # R_b = 1 outweighs R_d there; contacts can hide a few
+    on_goal = a[-1] > 0.5                 # R_b = 1 outweighs R_d there; contacts can hide a few
     assert set(diff[-1].unique().tolist()) <= {0.0, 3.0} and bool((diff[-1][on_goal] == 3.0).all())
 
 
 def test_team_bonus_moves_r_b_to_the_team_mean_and_keeps_the_team_total():
-    from masp_lite.algos.masp_trainer import MASPTrainer
-    base = dict(num_envs=8, width=8)
-    own = MASPTrainer("mpe-5", MAPPOConfig(**base), seed=5)
-    team = MASPTrainer("mpe-5", MAPPOConfig(**base, team_bonus=1.0), seed=5)
-    (_, a, _), (_, b, _) = own.collect(), team.collect()
-    diff = b["rewards"] - a["rewards"]                                        # (T, B, N)
+    a, b = _executor_rewards_with(5, 8, team_bonus=1.0)
+    diff = b - a                                                              # (T, B, N)
     torch.testing.assert_close(diff.sum(-1), torch.zeros_like(diff.sum(-1)), atol=1e-5, rtol=0)
     assert diff.abs().max() > 0.1                                   # someone's bonus was shared
-    on_goal = (a["rewards"] > 0.5).float()                          # R_b = 1 there (see above)
+    on_goal = (a > 0.5).float()                                     # R_b = 1 there (see above)
     ok = (on_goal.sum(-1) == 0) | (on_goal.sum(-1) == 5)            # nobody or everybody on goal
     assert bool((diff[ok].abs() < 1e-6).all())
