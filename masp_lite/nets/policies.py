@@ -244,9 +244,9 @@ class MASPNets(nn.Module):
     existed load as ``"random"``, and ``arch`` lists ``group_order`` only when it is not
     ``"random"``, so their records stay equal.
     ``neighbour_goals``: the executor's node of agent ``j`` (seen from ``k``) also holds
-    ``j``'s assigned goal (:func:`neighbour_goal_features`). The paper's nodes "contain the
-    state information of the agents" without a list; in a goal-conditioned task an
-    agent's goal is part of its state, and knowing whether a neighbour is settled on a
+    ``j``'s assigned goal (:func:`neighbour_goal_features`). The paper says the nodes hold the
+    agents' state but does not list it; in a goal-conditioned task an agent's goal is part
+    of its state, and knowing whether a neighbour is settled on a
     goal beside one's own is what avoiding a late push needs. Off (``False``, not listed in
     ``arch``) for every file saved before the option existed. :meth:`with_neighbour_goals`
     turns a network without it into one with it that acts identically (zero weights on the
