@@ -186,10 +186,9 @@ def test_executor_reward_distance_to_reach_edge():
 
 def test_complete_bonus_and_the_final_step_weight():
     from masp_lite.algos.rewards import complete_bonus
-    pos = torch.tensor([[[0.0, 0.0], [3.0, 0.0]]])
-    goal = torch.tensor([[[0.1, 0.0], [3.0, 2.0]]])
-    assert complete_bonus(pos, goal, None, 0.15).tolist() == [[1.0, 0.0]]
-    assert complete_bonus(pos, goal, torch.tensor([[False, True]]), 0.15).tolist() == [[0.0, 0.0]]
+    dist = torch.tensor([[0.1, 2.0, 0.15]])
+    assert complete_bonus(dist, 0.15).tolist() == [[1.0, 0.0, 0.0]]             # the reach itself is out
+    assert complete_bonus(dist, 0.15, torch.tensor([[False, True, True]])).tolist() == [[0.0, 0.0, 0.0]]
     with pytest.raises(ValueError, match="final_bonus_coef"):
         MAPPOConfig(final_bonus_coef=-1)
     with pytest.raises(ValueError, match="hard_layouts"):

@@ -8,12 +8,12 @@ import torch
 
 from masp_lite.envs import make
 
-SCRIPTS = Path(__file__).resolve().parents[1] / "results" / "masp"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "masp"
 
 
 def _load(name):
     """Import ``results/masp/NAME.py`` (scripts, not a package) as a module."""
-    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
+    spec = importlib.util.spec_from_file_location(name, RESULTS / f"{name}.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -150,7 +150,7 @@ def test_committed_training_seed_weights_match_their_manifests_and_load(folder):
     import json
 
     from masp_lite.checkpoints import load_weights
-    files = sorted((SCRIPTS / folder).glob("*.pt"))
+    files = sorted((RESULTS / folder).glob("*.pt"))
     assert files
     for pt in files:
         manifest = json.loads(pt.with_suffix(".manifest.json").read_text())

@@ -108,7 +108,7 @@ class MASPTrainer:
                                 w.scenario.world_size, cfg.bonus_coef, cfg.distance_coef, cfg.collision_coef,
                                 cfg.distance_to)
             if cfg.team_bonus or (t == self.horizon - 1 and cfg.final_bonus_coef):
-                r_b = complete_bonus(obs["agent_pos"], goal_pos, alive, self.reach)
+                r_b = complete_bonus((goal_pos - obs["agent_pos"]).norm(dim=-1), self.reach, alive)
                 if cfg.team_bonus:  # move a share of R_b from the agent to the team mean
                     team = r_b.sum(-1, keepdim=True) / alive.sum(-1, keepdim=True).clamp(min=1)
                     r = r + cfg.bonus_coef * cfg.team_bonus * torch.where(alive, team - r_b, torch.zeros_like(r_b))

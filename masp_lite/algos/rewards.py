@@ -88,7 +88,7 @@ def executor_reward(agent_pos, goal_pos, agent_collisions, alive, reach: float, 
     if distance_to not in ("centre", "reach"):
         raise ValueError(f"distance_to: expected 'centre' or 'reach', got {distance_to!r}")
     dist = (goal_pos - agent_pos).norm(dim=-1)
-    r_b = complete_bonus(agent_pos, goal_pos, None, reach)
+    r_b = complete_bonus(dist, reach)
     gap = dist if distance_to == "centre" else (dist - reach).clamp(min=0)
     r_d = -gap / (world_size / 2)
     r_c = -agent_collisions.to(agent_pos.dtype)
@@ -96,8 +96,8 @@ def executor_reward(agent_pos, goal_pos, agent_collisions, alive, reach: float, 
     return torch.where(alive, r, torch.zeros_like(r))
 
 
-def complete_bonus(agent_pos, goal_pos, alive, reach: float) -> torch.Tensor:
-    """``R_b`` (B, N): 1 where an agent is within ``reach`` of its assigned goal, else 0
-    (0 for dropped agents when ``alive`` is given)."""
-    r_b = ((goal_pos - agent_pos).norm(dim=-1) < reach).to(agent_pos.dtype)
+def complete_bonus(dist: torch.Tensor, reach: float, alive: torch.Tensor | None = None) -> torch.Tensor:
+    """``R_b`` (B, N) from each agent's distance ``dist`` (B, N) to its assigned goal: 1
+    within ``reach``, else 0 (0 for dropped agents when ``alive`` is given)."""
+    r_b = (dist < reach).to(dist.dtype)
     return r_b if alive is None else torch.where(alive, r_b, torch.zeros_like(r_b))
