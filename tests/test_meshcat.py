@@ -46,7 +46,7 @@ def screenshot(page: str, png: str) -> np.ndarray:
         subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
                         "--no-first-run", "--disable-background-networking", "--disable-component-update",
                         "--disable-sync", f"--user-data-dir={profile}", f"--screenshot={png}",
-                        "--window-size=640,480", "--virtual-time-budget=3000", f"file://{html}"],
+                        "--window-size=640,480", "--virtual-time-budget=8000", f"file://{html}"],
                        check=True, capture_output=True, timeout=120)
     return np.asarray(Image.open(png).convert("RGB")).astype(int)
 

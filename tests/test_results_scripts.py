@@ -144,6 +144,51 @@ def test_per_agent_search_only_perturbs_the_searching_agent(oracle):
     assert not torch.equal(moves[:, :, -1].diagonal(dim1=1, dim2=2), controller)   # the noisiest copies deviate
 
 
+@pytest.fixture(scope="module")
+def distill():
+    return _load("mpe5_distill")
+
+
+def test_action_search_keeps_the_controller_unless_another_action_wins_by_the_margin(oracle, distill):
+    w = make("mpe-5", num_envs=3, seed=2)
+    obs = w.reset(seed=2)
+    goals = torch.arange(5).expand(3, 5).clone()
+    goal_pos = torch.gather(w.landmark_pos, 1, goals.unsqueeze(-1).expand(3, 5, 2))
+    controller = oracle.arrival_actions(w.agent_pos, w.agent_vel, goal_pos)
+    s = distill.ActionSearch(w, copies=4, margin=1e9)
+    s.given = goals
+    assert torch.equal(s.act(obs), controller)
+    captured = {}
+    s = distill.ActionSearch(w, copies=4, margin=0.0)
+    s.given = goals
+    step = s.sim.step
+
+    def spy(a):
+        captured.setdefault("first", a.clone())
+        return step(a)
+    s.sim.step = spy
+    label = s.act(obs)
+    first = captured["first"].view(3, 5, 5, 4, 5)              # (world, agent k, forced action, copy, agent)
+    for k in range(5):
+        assert torch.equal(first[:, k, :, :, k], torch.arange(5).view(1, 5, 1).expand(3, 5, 4))
+        others = [j for j in range(5) if j != k]
+        assert torch.equal(first[:, k, :, :, others], controller[:, None, None, others].expand(3, 5, 4, 4))
+    assert label.shape == (3, 5) and int(w.t.max()) == 0
+
+
+def test_collect_labels_every_visited_state_and_fit_learns_the_labels(distill):
+    from masp_lite.checkpoints import load_weights
+    nets, _ = load_weights(None, scenario=make("mpe-5", num_envs=1).scenario)
+    data = distill.collect(nets, seed=1000, beta=1.0, candidates=5, kind="action", weights={}, episodes=4)
+    assert data["action"].shape == (4 * 18, 5) and data["goals"].shape == (4 * 18, 5)
+    assert set(data) == {*distill.KEYS, "goals", "action"}
+    assert distill.state_features(data).shape[:2] == (4 * 18, 5)
+    data["action"] = torch.full_like(data["action"], 3)         # a label the executor can learn
+    before = distill.fit(nets, data, epochs=1, lr=0.0, seed=0)
+    after = distill.fit(nets, data, epochs=40, lr=3e-3, seed=0)
+    assert after < 0.5 * before
+
+
 @pytest.mark.parametrize("folder", ["stage1", "seeds"])
 def test_committed_training_seed_weights_match_their_manifests_and_load(folder):
     import hashlib

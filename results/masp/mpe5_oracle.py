@@ -86,10 +86,15 @@ class SearchOracle:
     def reset(self, obs) -> None:
         pass
 
+    def goals(self, obs) -> torch.Tensor:
+        """Each agent's goal (B, N) for the controller: the Hungarian assignment on squared distances."""
+        w = self.world
+        return hungarian(w.agent_pos, w.landmark_pos, w.alive, None, 2.0)
+
     def act(self, obs) -> torch.Tensor:
         w, sim, K, g = self.world, self.sim, self.K, self.generator
         B, N = w.num_envs, w.num_agents
-        goals = hungarian(w.agent_pos, w.landmark_pos, w.alive, None, 2.0)
+        goals = self.goals(obs)
         goal_pos = torch.gather(w.landmark_pos, 1, goals.unsqueeze(-1).expand(B, N, 2)).repeat_interleave(K, 0)
         copy_state(sim, w, K)
         C = K // N if self.per_agent else K                                     # copies per search
