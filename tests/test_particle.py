@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from masp_lite.envs import PHYSICS, SCENARIOS, ParticleWorld, make, scenario_names
+from masp_lite.envs.scenarios import get_scenario
 
 DT, DAMP, SENS = PHYSICS["dt"], PHYSICS["damping"], PHYSICS["sensitivity"]
 PARTICLE = scenario_names("particle")
@@ -43,6 +44,21 @@ def test_accelerating_from_rest_matches_hand_computation():
         act(w, [2])
         assert w.agent_pos[0, 0].tolist() == pytest.approx([x, 0.0], abs=1e-12)
         assert w.agent_vel[0, 0].tolist() == pytest.approx([v, 0.0], abs=1e-12)
+
+
+def test_velocity_first_integration_moves_in_the_step_of_the_push():
+    w = make("mpe-5", num_envs=1, num_agents=1, num_obstacles=0, seed=0, integration="velocity_first")
+    w.reset(options={"agent_pos": torch.zeros(1, 2), "landmark_pos": torch.tensor([[0.9, 0.9]])})
+    # the original MPE: v = 0.5 then x = 0.05; v = 0.875 then x = 0.1375; ...
+    for x, v in [(0.05, 0.5), (0.1375, 0.875), (0.253125, 1.15625)]:
+        act(w, [2])
+        assert w.agent_pos[0, 0].tolist() == pytest.approx([x, 0.0], abs=1e-6)
+        assert w.agent_vel[0, 0].tolist() == pytest.approx([v, 0.0], abs=1e-6)
+    assert make("mpe-5").scenario.integration == "mpe2"
+    with pytest.raises(ValueError, match="integration in"):
+        make("mpe-5", integration="rk4")
+    with pytest.raises(ValueError, match="drone"):
+        get_scenario("drone-5", integration="velocity_first")
 
 
 def test_terminal_speed_is_two_metres_per_second():

@@ -15,7 +15,8 @@ Physics per step (``mpe2``'s ``World.step`` today; see the course, chapter 01):
    ``vel += force / mass * dt``.
 
 The original OpenAI MPE updated the velocity before the position; ``mpe2`` changed the
-order to match the MPE paper's dynamics, and so does this world.
+order to match the MPE paper's dynamics, and so does this world. The scenario override
+``integration="velocity_first"`` restores the original order, for experiments only.
 
 Bodies are circles: agents (``agent_radius``), immovable obstacles that collide with
 agents, and landmarks that collide with nothing. When the team shrinks (``team_after``),
@@ -269,9 +270,12 @@ class ParticleWorld:
         if self.num_obstacles:
             obst_f = contact_force(self._ao_delta, self._ao_dist, sc.agent_radius + sc.obstacle_radius)
             force = force + obst_f.sum(dim=2) * alive_f
-        # integration order of mpe2: position with the old velocity, then damping, then force
-        self.agent_pos = self.agent_pos + self.agent_vel * p["dt"] * alive_f
-        self.agent_vel = (self.agent_vel * (1 - p["damping"]) + force / p["mass"] * p["dt"]) * alive_f
+        if sc.integration == "mpe2":  # position with the old velocity, then damping, then force
+            self.agent_pos = self.agent_pos + self.agent_vel * p["dt"] * alive_f
+            self.agent_vel = (self.agent_vel * (1 - p["damping"]) + force / p["mass"] * p["dt"]) * alive_f
+        else:                          # the original MPE: velocity first, position with the new one
+            self.agent_vel = (self.agent_vel * (1 - p["damping"]) + force / p["mass"] * p["dt"]) * alive_f
+            self.agent_pos = self.agent_pos + self.agent_vel * p["dt"] * alive_f
         self.t = self.t + 1
         if sc.varying:
             changed = (self.t == sc.change_step).unsqueeze(-1)
