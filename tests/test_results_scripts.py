@@ -189,7 +189,7 @@ def test_collect_labels_every_visited_state_and_fit_learns_the_labels(distill):
     assert after < 0.5 * before
 
 
-@pytest.mark.parametrize("folder", ["stage1", "seeds"])
+@pytest.mark.parametrize("folder", ["stage1", "seeds", "velocity_first"])
 def test_committed_training_seed_weights_match_their_manifests_and_load(folder):
     import hashlib
     import json
