@@ -202,3 +202,17 @@ def test_committed_training_seed_weights_match_their_manifests_and_load(folder):
         assert manifest["weights_sha256"] == hashlib.sha256(pt.read_bytes()).hexdigest(), pt.name
         nets, rec = load_weights(str(pt), scenario=manifest["scenario"])
         assert nets.arch == manifest["arch"] and rec["scenario"] == manifest["scenario"]
+
+
+def test_velocity_first_record_is_what_evaluate_gives():
+    """The headline row of "The original MPE's update order" re-evaluates to the committed record."""
+    import json
+
+    from masp_lite.eval import evaluate
+    rec = json.loads((RESULTS / "velocity_first" / "masp_mpe-5_velocity_first.json").read_text())
+    assert rec["overrides"] == {"integration": "velocity_first"}
+    again = evaluate("masp", "mpe-5", episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
+                     overrides=rec["overrides"], method_options=rec["method_options"])
+    for key in ("sr", "steps", "cr"):
+        assert again[key]["mean"] == pytest.approx(rec[key]["mean"], abs=1e-9), key
+    assert rec["sr"]["mean"] >= 0.99
