@@ -43,7 +43,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mpe5_oracle import SearchOracle  # noqa: E402
+from mpe5_oracle import ACTION_DIRECTIONS, SearchOracle, arrival_actions, copy_state  # noqa: E402
 
 from masp_lite import eval as E  # noqa: E402
 from masp_lite.checkpoints import load_weights, save_weights  # noqa: E402
@@ -69,16 +69,15 @@ class ActionSearch:
     horizon: ``k`` plays ``a``, then the controller with random actions at rate
     ``noise * m / (M - 1)`` in copy ``m``; every other agent follows the controller. The
     copies are scored as in :class:`SearchOracle`. ``Q(a)`` is the best score among ``a``'s
-    copies; the label is ``argmax Q``, the controller's own action where it ties. Unlike
+    copies; the label is the controller's own action unless ``max Q`` beats its ``Q`` by more
+    than ``margin``, and ``argmax Q`` then. Unlike
     the first action of the single best copy, this label does not depend on which later
     random actions happened to pay off.
     """
 
     def __init__(self, world, copies: int = 25, noise: float = 0.5, contact_weight: float = 1.0,
                  coverage_weight: float = 0.5, seed: int = 0, margin: float = 0.0):
-        self.margin = float(margin)
-        from mpe5_oracle import ACTION_DIRECTIONS
-        self.world, self.M, self.noise = world, int(copies), float(noise)
+        self.world, self.M, self.noise, self.margin = world, int(copies), float(noise), float(margin)
         self.contact_weight, self.coverage_weight = float(contact_weight), float(coverage_weight)
         self.A = len(ACTION_DIRECTIONS)
         self.K = world.num_agents * self.A * self.M
@@ -91,7 +90,6 @@ class ActionSearch:
         pass
 
     def act(self, obs) -> torch.Tensor:
-        from mpe5_oracle import arrival_actions, copy_state
         w, sim, g = self.world, self.sim, self.generator
         B, N, A, M, K = w.num_envs, w.num_agents, self.A, self.M, self.K
         goal_pos_w = torch.gather(w.landmark_pos, 1, self.given.unsqueeze(-1).expand(B, N, 2))
@@ -145,6 +143,7 @@ class Teacher:
 
 
 def evaluate(world_policy, scenario="mpe-5") -> dict:
+    """Steps, SR and CR as ``evaluate`` computes them, for ``world_policy(world, seed)`` policies."""
     logs = []
     for seed in (0, 1, 2):
         world = make(scenario, num_envs=100, seed=seed)
@@ -205,7 +204,6 @@ def fit(nets, data: dict, epochs: int, lr: float, seed: int, batch: int = 512) -
 
 def controller_actions(data: dict) -> torch.Tensor:
     """The velocity controller's action for every labelled agent-step, toward its goal."""
-    from mpe5_oracle import arrival_actions
     goal_pos = torch.gather(data["landmark_pos"], 1, data["goals"].unsqueeze(-1).expand_as(data["agent_pos"]))
     return arrival_actions(data["agent_pos"], data["agent_vel"], goal_pos)
 
