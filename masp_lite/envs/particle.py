@@ -270,12 +270,11 @@ class ParticleWorld:
         if self.num_obstacles:
             obst_f = contact_force(self._ao_delta, self._ao_dist, sc.agent_radius + sc.obstacle_radius)
             force = force + obst_f.sum(dim=2) * alive_f
-        if sc.integration == "mpe2":  # position with the old velocity, then damping, then force
-            self.agent_pos = self.agent_pos + self.agent_vel * p["dt"] * alive_f
-            self.agent_vel = (self.agent_vel * (1 - p["damping"]) + force / p["mass"] * p["dt"]) * alive_f
-        else:                          # the original MPE: velocity first, position with the new one
-            self.agent_vel = (self.agent_vel * (1 - p["damping"]) + force / p["mass"] * p["dt"]) * alive_f
-            self.agent_pos = self.agent_pos + self.agent_vel * p["dt"] * alive_f
+        new_vel = (self.agent_vel * (1 - p["damping"]) + force / p["mass"] * p["dt"]) * alive_f
+        # mpe2 moves with the old velocity; the original MPE (velocity_first) with the new one
+        moving = self.agent_vel if sc.integration == "mpe2" else new_vel
+        self.agent_pos = self.agent_pos + moving * p["dt"] * alive_f
+        self.agent_vel = new_vel
         self.t = self.t + 1
         if sc.varying:
             changed = (self.t == sc.change_step).unsqueeze(-1)
