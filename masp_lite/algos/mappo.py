@@ -1,4 +1,4 @@
-"""MAPPO pieces shared by MASP's two levels: config, storage, GAE, PPO losses, value normalisation.
+"""MAPPO pieces shared by MASP's two levels: storage, GAE, PPO losses, value normalisation.
 
 MAPPO (Yu et al. 2022) is PPO with parameters shared by the agents and a centralized
 critic. MASP trains its Goal Matcher (one transition per global step) and its executor
@@ -14,148 +14,20 @@ holds what both levels use, each piece a small function:
   the graph networks need the whole team);
 * :func:`ppo_update` — epochs x minibatches of the combined loss, with gradient clipping.
 
-Defaults follow MAGE-X's MAPPO settings (lr 7e-4, clip 0.2, entropy 0.01, gamma 0.99,
+The settings (:class:`masp_lite.config.PPOConfig`) default to MAGE-X's MAPPO settings (lr 7e-4, clip 0.2, entropy 0.01, gamma 0.99,
 lambda 0.95, Huber delta 10, max grad norm 10, value normalisation). Why hand-written:
 the MARL libraries' PPO (e.g. ``on-policy``) assume flat per-agent observations; ours are
 graphs whose rows must keep a world's agents together.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import torch
 from torch import nn
 
-__all__ = ["MAPPOConfig", "gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage",
+from ..config import PPOConfig
+
+__all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage",
            "ppo_update"]
-
-
-@dataclass
-class MAPPOConfig:
-    """Training settings for MASP (both levels). ``--set key=value`` on the CLI sets any field."""
-
-    num_envs: int = 64
-    """Worlds simulated side by side; one rollout is one episode of each."""
-    updates: int = 200
-    """PPO updates (rollouts) in the whole run."""
-    lr: float = 7e-4
-    """Adam learning rate, all four networks."""
-    ppo_epochs: int = 4
-    """Passes over each rollout (executor)."""
-    gm_ppo_epochs: int = 10
-    """Passes over each rollout for the Goal Matcher (its rollouts are 3x shorter and cheap)."""
-    num_minibatches: int = 2
-    """Minibatches per pass (rows are (step, world) pairs)."""
-    clip: float = 0.2
-    """PPO ratio clip (policy) and value clip."""
-    entropy_coef: float = 0.01
-    """Entropy bonus weight."""
-    value_coef: float = 1.0
-    """Value loss weight."""
-    huber_delta: float = 10.0
-    """Huber loss threshold for the value loss."""
-    max_grad_norm: float = 10.0
-    """Gradient norm clip per network group."""
-    gamma: float = 0.99
-    """Executor discount per environment step."""
-    gae_lambda: float = 0.95
-    """GAE lambda (both levels)."""
-    gm_gamma: float = 0.5
-    """Goal Matcher discount per global step (its reward, eq. 1, is nearly immediate)."""
-    bonus_coef: float = 1.0
-    """alpha in R_CAE: weight of the complete bonus R_b."""
-    distance_coef: float = 1.0
-    """beta in R_CAE: weight of the distance penalty R_d."""
-    distance_to: str = "centre"
-    """What R_d measures the distance to: ``centre``, the assigned landmark's centre (after
-    MAGE-X), or ``reach``, the edge of its reach disc (0 anywhere the landmark counts as
-    covered, so an agent on its landmark is not pulled onto the exact centre, where a
-    neighbour on a close landmark or an obstacle beside it pushes it off)."""
-    collision_coef: float = 1.0
-    """gamma in R_CAE: weight of the collision penalty R_c."""
-    team_bonus: float = 0.0
-    """Share of R_b pooled over the team: agent ``k``'s bonus is
-    ``(1 - team_bonus) * R_b^k + team_bonus * mean_j R_b^j`` (alive agents). 0: each agent's
-    own bonus (after MAGE-X). With a share, an agent that pushes a neighbour off its goal
-    loses part of the neighbour's bonus too, not only its own contact penalty."""
-    final_bonus_coef: float = 0.0
-    """Extra weight of R_b at an episode's last step: ``R_CAE += final_bonus_coef * R_b``
-    there (0: the paper's R_CAE unchanged). The fixed-team SR counts the landmarks covered
-    at the end (:func:`masp_lite.eval.success_rate`); this term makes being on the goal
-    then worth more than at any earlier step."""
-    hard_layouts: float = 0.0
-    """Fraction of training worlds whose layout is made harder each rollout
-    (:func:`masp_lite.algos.curriculum.harden_layouts`: one landmark moved next to another
-    landmark or an obstacle, the layouts where mpe-5's misses are). 0: the scenario's own
-    uniform spawns, as in the paper."""
-    width: int = 32
-    """Feature width L of every network."""
-    group_size: int = 3
-    """N_g, agents per group in the Group Information Fusion."""
-    gcn_layers: int = 1
-    """GCN layers per subgraph."""
-    obstacles_seen: int = 2
-    """Nearest obstacles the executor sees."""
-    global_step: int = 3
-    """Environment steps per Goal Matcher decision."""
-    group_order: str = "random"
-    """Order of agent ``k``'s others before the group division: ``random`` (the paper) or
-    ``nearest`` (by distance from ``k``; see :class:`masp_lite.nets.policies.MASPNets`)."""
-    neighbour_goals: bool = False
-    """The executor also sees each neighbour's assigned goal (``MASPNets(neighbour_goals=...)``,
-    :func:`masp_lite.nets.policies.neighbour_goal_features`); off in the paper's reading."""
-    gm_decode: str = "joint"
-    """How training samples goals from the Goal Matcher (:mod:`masp_lite.nets.decoding`):
-    ``joint`` draws distinct goals agent by agent in a random order; ``independent`` lets
-    every agent sample alone (duplicates allowed, the paper's literal wording)."""
-    gm_reference_power: float = 1.0
-    """Cost of R_GM's Hungarian reference (eq. 1): ``distance ** gm_reference_power`` per
-    agent–goal pair, minimised in total; ``D_m`` and ``D_h`` are totals of the same cost.
-    ``1``: total distance. ``2``: total squared distance, which favours assignments whose
-    longest trip is shorter (fewer Steps; see :func:`masp_lite.algos.assignment.hungarian`).
-    The paper does not give the reference's edge weights."""
-    train_executor: bool = True
-    """Update the executor and its critic; ``False`` freezes them and trains only the Goal
-    Matcher (a cheap fine-tuning stage on a larger team: the executor's PPO update, which
-    dominates an iteration, is skipped; its actions are still sampled as in training)."""
-    eval_every: int = 10
-    """Updates between evaluations (0: only at the end)."""
-    eval_episodes: int = 32
-    """Episodes per evaluation (deterministic policies, fixed evaluation seed)."""
-    checkpoint_every: int = 5
-    """Updates between checkpoints of the training state."""
-
-    def __post_init__(self):
-        ints = ("num_envs", "updates", "ppo_epochs", "gm_ppo_epochs", "num_minibatches", "width", "group_size", "gcn_layers",
-                "obstacles_seen", "global_step", "eval_episodes", "checkpoint_every")
-        for name in ints:
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < (2 if name == "group_size" else 1):
-                raise ValueError(f"{name}: expected a positive int, got {v!r}")
-        if isinstance(self.eval_every, bool) or not isinstance(self.eval_every, int) or self.eval_every < 0:
-            raise ValueError(f"eval_every: expected an int >= 0, got {self.eval_every!r}")
-        for name in ("gamma", "gae_lambda", "gm_gamma"):
-            if not 0.0 <= float(getattr(self, name)) <= 1.0:
-                raise ValueError(f"{name}: expected a number in [0, 1], got {getattr(self, name)!r}")
-        if not isinstance(self.neighbour_goals, bool):
-            raise ValueError(f"neighbour_goals: expected True or False, got {self.neighbour_goals!r}")
-        if not isinstance(self.train_executor, bool):
-            raise ValueError(f"train_executor: expected True or False, got {self.train_executor!r}")
-        if self.group_order not in ("random", "nearest"):
-            raise ValueError(f"group_order: expected 'random' or 'nearest', got {self.group_order!r}")
-        if self.distance_to not in ("centre", "reach"):
-            raise ValueError(f"distance_to: expected 'centre' or 'reach', got {self.distance_to!r}")
-        if self.gm_decode not in ("joint", "independent"):
-            raise ValueError(f"gm_decode: expected 'joint' or 'independent', got {self.gm_decode!r}")
-        if not 0.0 <= float(self.team_bonus) <= 1.0:
-            raise ValueError(f"team_bonus: expected a fraction in [0, 1], got {self.team_bonus!r}")
-        if not float(self.final_bonus_coef) >= 0:
-            raise ValueError(f"final_bonus_coef: expected a number >= 0, got {self.final_bonus_coef!r}")
-        if not 0.0 <= float(self.hard_layouts) <= 1.0:
-            raise ValueError(f"hard_layouts: expected a fraction in [0, 1], got {self.hard_layouts!r}")
-        for name in ("lr", "clip", "huber_delta", "max_grad_norm"):
-            if not float(getattr(self, name)) > 0:
-                raise ValueError(f"{name}: expected a positive number, got {getattr(self, name)!r}")
 
 
 def gae(rewards: torch.Tensor, values: torch.Tensor, next_value: torch.Tensor, gamma: float, lam: float,
@@ -270,7 +142,7 @@ class RolloutStorage:
             yield {k: v[idx] for k, v in flat.items()}
 
 
-def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: MAPPOConfig,
+def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: PPOConfig,
                value_norm: ValueNorm, generator: torch.Generator, epochs: int | None = None) -> dict[str, float]:
     """Run PPO on one level's rollout; returns mean ``policy_loss``, ``value_loss``, ``entropy``.
 

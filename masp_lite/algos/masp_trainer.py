@@ -1,6 +1,6 @@
 """One MASP training iteration: collect an episode in every world, then PPO on both levels.
 
-:class:`MASPTrainer` owns the world, the four networks (:class:`~masp_lite.nets.policies.MASPNets`),
+:class:`MASPTrainer` owns the world, the four networks (:class:`~masp_lite.nets.masp.MASPNets`),
 two Adam optimizers (one per level), two :class:`~masp_lite.algos.mappo.ValueNorm` and one
 ``torch.Generator`` that draws every random number of training (action samples, group
 orders, minibatch orders); the world draws spawns from its own generator. Saving and
@@ -10,8 +10,8 @@ Per environment step ``t`` of a rollout (all worlds and agents at once, under
 ``torch.inference_mode``):
 
 1. every ``global_step`` steps the Goal Matcher samples a goal per agent — distinct goals,
-   drawn agent by agent in a random order (stored with the picks), unless
-   ``gm_decode="independent"`` (:mod:`masp_lite.nets.decoding`); its reward ``R_GM``
+   drawn agent by agent in a random order (stored with the picks,
+   :mod:`masp_lite.nets.decoding`); its reward ``R_GM``
    (eq. 1) is computed at once against the Hungarian assignment;
 2. the executor samples an action per agent from its goal, a fresh random group order
    (stored, so the update rebuilds the same groups), and the world steps;
@@ -25,16 +25,14 @@ leaves the executor, its critic and its value normalisation untouched).
 """
 from __future__ import annotations
 
-from dataclasses import asdict
-
 import torch
 
+from ..config import TrainConfig
 from ..envs import make
 from ..nets.decoding import conditional_logits, sequential_sample
-from ..nets.policies import MASPNets
-from .curriculum import harden_layouts
-from .mappo import MAPPOConfig, RolloutStorage, ValueNorm, gae, ppo_update
-from .rewards import complete_bonus, executor_reward, goal_matcher_reward
+from ..nets.masp import MASPNets
+from .mappo import RolloutStorage, ValueNorm, gae, ppo_update
+from .rewards import executor_reward, goal_matcher_reward
 
 __all__ = ["MASPTrainer", "sample", "OBS_KEYS"]
 
@@ -52,20 +50,18 @@ def sample(logits: torch.Tensor, generator: torch.Generator):
 class MASPTrainer:
     """MASP on one scenario: ``iteration()`` = one rollout + one update of both levels."""
 
-    def __init__(self, scenario: str, cfg: MAPPOConfig, seed: int = 0, overrides: dict | None = None):
+    def __init__(self, scenario: str, cfg: TrainConfig, seed: int = 0, overrides: dict | None = None):
         self.cfg, self.seed = cfg, int(seed)
-        self.world = make(scenario, num_envs=cfg.num_envs, seed=self.seed, **(overrides or {}))
+        self.world = make(scenario, num_envs=cfg.run.num_envs, seed=self.seed, **(overrides or {}))
         sc = self.world.scenario
         if sc.kind != "particle":
             raise ValueError(f"masp training: expected a particle scenario, got {sc.name!r}")
         self.scale, self.horizon, self.reach = sc.world_size / 2, sc.horizon, sc.reach_distance
         torch.manual_seed(self.seed)  # network initialisation
-        self.nets = MASPNets(width=cfg.width, group_size=cfg.group_size, gcn_layers=cfg.gcn_layers,
-                             obstacles_seen=cfg.obstacles_seen, global_step=cfg.global_step,
-                             group_order=cfg.group_order, neighbour_goals=cfg.neighbour_goals)
+        self.nets = MASPNets(cfg.net)
         n = self.nets
-        self.gm_opt = torch.optim.Adam(list(n.gm.parameters()) + list(n.gm_critic.parameters()), lr=cfg.lr, eps=1e-5)
-        self.cae_opt = torch.optim.Adam(list(n.cae.parameters()) + list(n.cae_critic.parameters()), lr=cfg.lr, eps=1e-5)
+        self.gm_opt = torch.optim.Adam(list(n.gm.parameters()) + list(n.gm_critic.parameters()), lr=cfg.ppo.lr, eps=1e-5)
+        self.cae_opt = torch.optim.Adam(list(n.cae.parameters()) + list(n.cae_critic.parameters()), lr=cfg.ppo.lr, eps=1e-5)
         self.gm_norm, self.cae_norm = ValueNorm(), ValueNorm()
         self.generator = torch.Generator().manual_seed(self.seed + 10_007)
         self.iterations = 0
@@ -77,25 +73,19 @@ class MASPTrainer:
         """One episode in every world; returns (gm data, cae data, episode stats)."""
         w, n, cfg, g = self.world, self.nets, self.cfg, self.generator
         obs = w.reset()
-        if cfg.hard_layouts:
-            harden_layouts(w, cfg.hard_layouts, g)
-            obs = w.observe()
         gm, cae = RolloutStorage(), RolloutStorage()
         goals = None
         cov, col = [obs["covered"].all(-1)], []
         B, N = w.num_envs, w.num_agents
         for t in range(self.horizon):
             snap = {k: obs[k].clone() for k in OBS_KEYS}
-            if t % cfg.global_step == 0:
+            if t % cfg.net.global_step == 0:
                 logits = n.gm_logits(obs, self.scale)
-                if cfg.gm_decode == "joint":
-                    goals, logp, rank = sequential_sample(logits, obs["alive"], g)
-                else:
-                    (goals, logp), rank = sample(logits, g), torch.zeros(B, N, dtype=torch.long)
+                goals, logp, rank = sequential_sample(logits, obs["alive"], g)
                 v = n.gm_value(obs, self.scale, self.horizon)
                 goal_mask = ~obs["reached"] if w.scenario.varying else None
                 r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask,
-                                        power=cfg.gm_reference_power)
+                                        power=cfg.reward.gm_reference_power)
                 gm.add(**snap, actions=goals, rank=rank, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
             perm = torch.rand(B, N, generator=g).argsort(-1)
             inputs = n.cae_inputs(obs, goals, perm)
@@ -105,15 +95,8 @@ class MASPTrainer:
             obs, info = w.step(torch.where(alive, actions, torch.zeros_like(actions)))
             goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand(B, N, 2))
             r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
-                                w.scenario.world_size, cfg.bonus_coef, cfg.distance_coef, cfg.collision_coef,
-                                cfg.distance_to)
-            if cfg.team_bonus or (t == self.horizon - 1 and cfg.final_bonus_coef):
-                r_b = complete_bonus((goal_pos - obs["agent_pos"]).norm(dim=-1), self.reach, alive)
-                if cfg.team_bonus:  # move a share of R_b from the agent to the team mean
-                    team = r_b.sum(-1, keepdim=True) / alive.sum(-1, keepdim=True).clamp(min=1)
-                    r = r + cfg.bonus_coef * cfg.team_bonus * torch.where(alive, team - r_b, torch.zeros_like(r_b))
-                if t == self.horizon - 1 and cfg.final_bonus_coef:  # the step the success rate counts
-                    r = r + cfg.final_bonus_coef * r_b
+                                w.scenario.world_size, cfg.reward.bonus_coef, cfg.reward.distance_coef,
+                                cfg.reward.collision_coef)
             cae.add(**snap, goals=goals, perm=perm, actions=actions, logp=logp, values=v, rewards=r, mask=alive)
             cov.append(info["covered"].all(-1))
             col.append(info["collisions"])
@@ -122,12 +105,12 @@ class MASPTrainer:
         first = torch.where(solved, torch.arange(self.horizon + 1), self.horizon).min(1).values
         stats = {"sr": float(obs["covered"].float().mean()), "steps": float(first.float().mean()),
                  "cr": float(torch.stack(col, 1).float().mean())}
-        return self._advantages(gm.stacked(), self.gm_norm, cfg.gm_gamma), \
-            self._advantages(cae.stacked(), self.cae_norm, cfg.gamma, update=cfg.train_executor), stats
+        return self._advantages(gm.stacked(), self.gm_norm, cfg.ppo.gm_gamma), \
+            self._advantages(cae.stacked(), self.cae_norm, cfg.ppo.gamma, update=cfg.run.train_executor), stats
 
     def _advantages(self, data, norm: ValueNorm, gamma: float, update: bool = True):
         values = norm.denormalize(data["values"])
-        adv, ret = gae(data["rewards"], values, torch.zeros_like(values[0]), gamma, self.cfg.gae_lambda)
+        adv, ret = gae(data["rewards"], values, torch.zeros_like(values[0]), gamma, self.cfg.ppo.gae_lambda)
         data["advantages"], data["returns"] = adv, ret
         if update:  # a frozen level keeps its value normalisation too
             norm.update(ret, data["mask"])
@@ -137,9 +120,7 @@ class MASPTrainer:
     # ------------------------------------------------------------------ update
     def _gm_eval(self, mb):
         obs = {k: mb[k] for k in OBS_KEYS}
-        logits = self.nets.gm_logits(obs, self.scale)
-        if self.cfg.gm_decode == "joint":
-            logits = conditional_logits(logits, mb["actions"], mb["rank"], obs["alive"])
+        logits = conditional_logits(self.nets.gm_logits(obs, self.scale), mb["actions"], mb["rank"], obs["alive"])
         return logits, self.nets.gm_value(obs, self.scale, self.horizon)
 
     def _cae_eval(self, mb):
@@ -153,10 +134,10 @@ class MASPTrainer:
         r_gm = float(gm_data.pop("reward_mean")[gm_data["mask"]].mean())
         r_cae = float(cae_data.pop("reward_mean")[cae_data["mask"]].mean())
         n, cfg = self.nets, self.cfg
-        s_gm = ppo_update(gm_data, self._gm_eval, n.gm, n.gm_critic, self.gm_opt, cfg, self.gm_norm, self.generator,
-                          epochs=cfg.gm_ppo_epochs)
-        if cfg.train_executor:
-            s_cae = ppo_update(cae_data, self._cae_eval, n.cae, n.cae_critic, self.cae_opt, cfg, self.cae_norm,
+        s_gm = ppo_update(gm_data, self._gm_eval, n.gm, n.gm_critic, self.gm_opt, cfg.ppo, self.gm_norm,
+                          self.generator, epochs=cfg.ppo.gm_ppo_epochs)
+        if cfg.run.train_executor:
+            s_cae = ppo_update(cae_data, self._cae_eval, n.cae, n.cae_critic, self.cae_opt, cfg.ppo, self.cae_norm,
                                self.generator)
         else:  # executor frozen (Goal Matcher fine-tuning): nothing to report
             s_cae = {"policy_loss": float("nan"), "value_loss": float("nan"), "entropy": float("nan")}
@@ -174,7 +155,7 @@ class MASPTrainer:
                 "cae_opt": self.cae_opt.state_dict(), "gm_norm": self.gm_norm.state_dict(),
                 "cae_norm": self.cae_norm.state_dict(), "generator": self.generator.get_state(),
                 "world_rng": self.world.get_rng_state(), "iterations": self.iterations,
-                "env_steps": self.env_steps, "config": asdict(self.cfg), "seed": self.seed}
+                "env_steps": self.env_steps, "config": self.cfg.flat(), "seed": self.seed}
 
     def load_state_dict(self, state: dict) -> None:
         self.nets.load_state_dict(state["nets"])

@@ -26,11 +26,8 @@ MAGE-X's executor reward, the code MASP descends from):
   its assigned goal, else 0;
 * ``R_d`` (distance penalty) = ``-dist(agent, assigned goal) / (world_size / 2)`` — map
   normalised so the term has the same size on every map;
-  ``MAPPOConfig.distance_to="reach"`` measures the distance to the edge of the goal's
-  reach disc instead (``-max(dist - reach, 0) / (world_size / 2)``), so R_d is 0 wherever
-  the goal counts as covered;
 * ``R_c`` (collision penalty) = ``-(agent k's contacts)`` with agents and obstacles;
-* ``alpha = 1``, ``beta = 1``, ``gamma = 1`` by default (``MAPPOConfig.bonus_coef``,
+* ``alpha = 1``, ``beta = 1``, ``gamma = 1`` by default (``RewardConfig.bonus_coef``,
   ``distance_coef``, ``collision_coef``): one collision costs as much as one step on the
   goal earns.
 """
@@ -58,7 +55,7 @@ def goal_matcher_reward(agent_pos, goal_pos, goals, alive, goal_mask=None, refer
     (B, M) bool: goals the Hungarian reference may use (``None``: all); ``reference``:
     a precomputed Hungarian assignment (B, N) (computed here when ``None``); ``power``: the
     reference minimises the total of ``distance ** power``, and ``D_m``, ``D_h`` are totals
-    of that cost (``MAPPOConfig.gm_reference_power``; 1 = total distance).
+    of that cost (``RewardConfig.gm_reference_power``; 1 = total distance).
     """
     if goals.shape != alive.shape or goals.dtype != torch.long:
         raise ValueError(f"goals: expected a long tensor of shape {tuple(alive.shape)}, got "
@@ -76,21 +73,15 @@ def goal_matcher_reward(agent_pos, goal_pos, goals, alive, goal_mask=None, refer
 
 
 def executor_reward(agent_pos, goal_pos, agent_collisions, alive, reach: float, world_size: float,
-                    alpha: float = 1.0, beta: float = 1.0, gamma: float = 1.0,
-                    distance_to: str = "centre") -> torch.Tensor:
+                    alpha: float = 1.0, beta: float = 1.0, gamma: float = 1.0) -> torch.Tensor:
     """Equation 5 for every agent: ``alpha R_b + beta R_d + gamma R_c``, a float tensor (B, N).
 
     ``agent_pos`` and ``goal_pos`` (the assigned goal of each agent) are (B, N, 2) after
     the step; ``agent_collisions`` (B, N) the contacts of each agent after the step.
-    ``distance_to``: ``"centre"`` (R_d from the goal's centre) or ``"reach"`` (from the
-    edge of its reach disc: ``-max(dist - reach, 0)``, map normalised as above).
     """
-    if distance_to not in ("centre", "reach"):
-        raise ValueError(f"distance_to: expected 'centre' or 'reach', got {distance_to!r}")
     dist = (goal_pos - agent_pos).norm(dim=-1)
     r_b = complete_bonus(dist, reach)
-    gap = dist if distance_to == "centre" else (dist - reach).clamp(min=0)
-    r_d = -gap / (world_size / 2)
+    r_d = -dist / (world_size / 2)
     r_c = -agent_collisions.to(agent_pos.dtype)
     r = alpha * r_b + beta * r_d + gamma * r_c
     return torch.where(alive, r, torch.zeros_like(r))

@@ -1,8 +1,9 @@
-"""``python -m masp_lite bench [TARGET] [options]``: throughput and latency benchmarks.
+"""Throughput and latency benchmarks (``python -m masp_lite bench [TARGET] [options]``).
 
 Each target is a module ``masp_lite.bench.TARGET`` with ``run(args) -> int`` and, when it
-takes options, ``add_arguments(parser)``; this module only dispatches, so the targets stay
-independent:
+takes options, ``add_arguments(parser)``; :mod:`masp_lite.cli.bench` dispatches to them,
+so the targets stay independent. Each prints its measurement beside a reference measured
+in the same run (ratios, never absolute timings in tests):
 
 ===========  ==============================================================
 ``env``      particle-world agent-steps/s, and mpe2's in the same run
@@ -16,11 +17,10 @@ Without a target, every target present in this version runs with its defaults.
 """
 from __future__ import annotations
 
-import argparse
 import importlib
 import time
 
-__all__ = ["TARGETS", "add_arguments", "run", "load_target"]
+__all__ = ["TARGETS", "calls_per_second", "load_target"]
 
 #: target -> one-line description
 TARGETS = {
@@ -42,13 +42,6 @@ def calls_per_second(fn, seconds: float, warmup: int = 3) -> float:
     return n / elapsed
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("target", nargs="?", default=None,
-                        help=f"what to measure, one of {list(TARGETS)} (default: every available one)")
-    parser.add_argument("options", nargs=argparse.REMAINDER,
-                        help="the target's own options (see: bench TARGET --help)")
-
-
 def load_target(name: str):
     """The module of bench target ``name``; a clear ValueError when it is unknown or missing."""
     if name not in TARGETS:
@@ -61,29 +54,3 @@ def load_target(name: str):
             raise ValueError(f"bench target {name!r} is not available in this version "
                              f"({module_name} is missing); expected one of {list(TARGETS)}") from None
         raise
-
-
-def _target_args(module, name: str, argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog=f"python -m masp_lite bench {name}",
-                                     description=TARGETS[name])
-    if hasattr(module, "add_arguments"):
-        module.add_arguments(parser)
-    return parser.parse_args(argv)
-
-
-def run(args: argparse.Namespace) -> int:
-    options = list(getattr(args, "options", None) or [])
-    if args.target is not None:
-        module = load_target(args.target)
-        return int(module.run(_target_args(module, args.target, options)) or 0)
-    if options:
-        raise ValueError(f"bench: options {options} need a target; expected one of {list(TARGETS)}")
-    status = 0
-    for name in TARGETS:
-        try:
-            module = load_target(name)
-        except ValueError as e:
-            print(f"(skipped) {e}")
-            continue
-        status = max(status, int(module.run(_target_args(module, name, [])) or 0))
-    return status

@@ -41,8 +41,9 @@ def add_arguments(parser) -> None:
 
 
 def _policy(world):
-    from ..checkpoints import load_weights
-    from ..nets.policies import MASPNets, MASPPolicy
+    from ..nets.masp import MASPNets
+    from ..policies.masp import MASPPolicy
+    from ..weights import load_weights
     try:
         nets, _ = load_weights(None, scenario="mpe-50")
         source = "shipped mpe-50 weights"
@@ -80,9 +81,9 @@ def decision_time(agents: int = 50) -> dict:
 
 def training_throughput(scenario: str, num_envs: int = 16, iterations: int = 1) -> float:
     """Environment steps per second of MASP training (collect + update) on ``scenario``."""
-    from ..algos.mappo import MAPPOConfig
     from ..algos.masp_trainer import MASPTrainer
-    tr = MASPTrainer(scenario, MAPPOConfig(num_envs=num_envs), seed=0)
+    from ..config import RunConfig, TrainConfig
+    tr = MASPTrainer(scenario, TrainConfig(run=RunConfig(num_envs=num_envs)), seed=0)
     tr.iteration()  # warm-up
     start, t0 = tr.env_steps, time.perf_counter()
     for _ in range(iterations):

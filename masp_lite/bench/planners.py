@@ -11,7 +11,7 @@ It prints mean (std) milliseconds per step and the paper's figure beside it.
 ``--split`` also runs ``--split-episodes`` batched episodes per planner on a scenario
 (default ``mpe-20``) and splits the collision rate (CR, contacts per step) into
 agent–agent and agent–obstacle contacts with
-:func:`masp_lite.planners.methods.split_collisions` — the path planners should put
+:func:`masp_lite.policies.planners.split_collisions` — the path planners should put
 nobody into an obstacle.
 
 Timings depend on the machine and on its load: the machine's load average is printed with
@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from ..envs import make
-from ..methods import make_policy
+from ..policies import get_factory, make_policy, method_options
 
 __all__ = ["add_arguments", "run", "step_times", "collision_split", "PAPER_MS"]
 
@@ -50,8 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _policy(method, world, seed):
-    from ..eval import _factory, _method_params
-    named, _ = _method_params(_factory(method))
+    named, _ = method_options(get_factory(method))
     return make_policy(method, world, **({"seed": seed} if "seed" in named else {}))
 
 
@@ -75,7 +74,7 @@ def step_times(method: str, scenario: str = "mpe-50", episodes: int = 2, seed: i
 
 def collision_split(method: str, scenario: str = "mpe-20", episodes: int = 20, seed: int = 0) -> dict:
     """Mean contacts per step over ``episodes`` episodes: total, agent–agent, agent–obstacle."""
-    from ..planners.methods import split_collisions
+    from ..policies.planners import split_collisions
     world = make(scenario, num_envs=episodes, seed=seed)
     obs = world.reset(seed=seed)
     policy = _policy(method, world, seed)

@@ -43,39 +43,19 @@ Choices (the paper leaves them open):
   one it had when it left.
 
 Physics. Several worlds (``num_envs`` > 1) are stepped by ``mujoco.batch.Batch`` (one
-model, ``num_envs`` state rows, stepped in C on ``threads`` threads, 1 by default); its
-``rollout`` records the contact sensors after every substep. It matches or beats a Python
-loop of ``mj_step`` over one ``MjData`` per world and keeps every world's state in one
-array. One world (``num_envs`` = 1, the PettingZoo face and ``bench drones``' first row)
-is one ``MjData`` stepped by ``mujoco.mj_step``, its sensors copied after each substep:
-the same computation (the batch's results are bit-identical to such a loop, and a test
-checks the two paths against each other), without the batch's per-call cost of loading
-and saving the state row and the Python around ``rollout`` (measured on ``drone-20``,
-one core: rollout ≈ 166 µs per control step, the direct loop ≈ 160, raw ``mj_step``
-≈ 156). One difference remains at the edge: a world whose MuJoCo warning counters rise
-(a diverging simulation) is frozen by the batch but left to ``mj_step``'s own handling
-(it resets the data) in the direct loop. :meth:`DroneWorld.get_data` copies a world's
-state out of either.
+model, one state row per world, stepped in C on ``threads`` threads); one world (the
+PettingZoo face) is one ``MjData`` stepped by ``mujoco.mj_step``. The two paths give the
+same numbers (a test checks them against each other). Internal state is numpy (float64,
+MuJoCo's); observations are torch tensors on ``device``, never written after they are
+handed out, so a caller may keep them.
 
-Bookkeeping. The rest of a step is a fixed cost per call, so its share shrinks as worlds
-are batched; at one world it is what ``bench drones`` weighs against raw ``mj_step``
-(target ≤ 1.5×). Measured on ``drone-20``, hovering, 1 world: a step took ≈ 250 µs
-against 156 µs of raw physics (1.6×), ≈ 40 µs of it the coverage test and the tensors
-(each numpy or torch call costs several times its isolated time there, the caches being
-cold after four ``mj_step`` calls), so the step makes few calls: actions are checked and
-turned into thrusts in place in preallocated arrays; the crash test is one conservative
-comparison of ``|position|`` with the volume's bounds (the exact one runs only when it or
-a contact sensor fires); the observed state is one ``concatenate`` straight into the
-observation dtype; tensors of arrays that change only on events (landmarks, alive,
-collision counts, covered/reached, ``done`` before the horizon) are made once per event;
-and the coverage test is skipped while provably nothing is covered — after an exact test
-that found every alive drone at least ``gap`` beyond reach of every landmark, later steps
-skip it as long as no drone moved ``gap / √3`` or more along any axis (see
-``_check_coverage``); the answer is the same, bit for bit (a drone on or near a landmark
-keeps the exact test running every step). Result: ≈ 1.3× at one world. A tensor handed
-out is never written afterwards (the state ones are ``torch.from_numpy`` of new arrays
-every step), so a caller may keep observations. Internal state is numpy (float64,
-MuJoCo's); observations are torch tensors on ``device``.
+Speed. The rest of a step is a fixed cost per call, so ``step`` makes few numpy calls:
+actions become thrusts in place in preallocated arrays, the crash test is one
+conservative bounds check (the exact one runs only when it or a contact sensor fires),
+tensors of arrays that change only on events are made once per event, and the coverage
+test is skipped while provably nothing is covered (``_check_coverage``; the answer is the
+same, bit for bit). ``python -m masp_lite bench drones`` measures the overhead against raw
+``mj_step``.
 """
 from __future__ import annotations
 
@@ -86,7 +66,8 @@ import torch
 
 from .drone_model import (ARM_LENGTH, COLLISION_RADIUS, HOVER_COMMAND, HUMMINGBIRD, MAX_THRUST,
                           SUBSTEPS, build_model)
-from .scenarios import Scenario, get_scenario
+from .base import BatchedWorld
+from .scenarios import Scenario
 
 __all__ = ["DroneWorld", "FLIGHT_HEIGHT", "CEILING", "LANDMARK_HEIGHTS"]
 
@@ -99,26 +80,16 @@ _EVENT_KEYS = ("alive", "landmark_pos", "collisions", "agent_collisions", "cover
 _OPTIONS = {"agent_pos": 3, "agent_vel": 3, "agent_quat": 4, "agent_angvel": 3, "landmark_pos": 3}
 
 
-class DroneWorld:
+class DroneWorld(BatchedWorld):
     """``num_envs`` independent quadrotor navigation episodes stepped together."""
+
+    kind = "drone"
+    reset_options = _OPTIONS
 
     def __init__(self, scenario: str | Scenario = "drone-5", num_envs: int = 1,
                  device: str | torch.device = "cpu", seed: int | None = None,
                  dtype: torch.dtype = torch.float32, threads: int = 1, **overrides):
-        self.scenario = sc = get_scenario(scenario, **overrides)
-        if sc.kind != "drone":
-            raise ValueError(f"scenario {sc.name!r} is a {sc.kind} scenario; expected a drone scenario (drone-*)")
-        if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
-            raise ValueError(f"num_envs: expected a positive int, got {num_envs!r}")
-        if dtype not in (torch.float32, torch.float64):
-            raise ValueError(f"dtype: expected torch.float32 or torch.float64, got {dtype}")
-        try:
-            self.device = torch.device(device)
-        except (RuntimeError, TypeError) as e:
-            raise ValueError(f"device: expected a torch device such as 'cpu' or 'cuda', got {device!r}") from e
-        self.dtype, self.num_envs = dtype, int(num_envs)
-        self.num_agents = self.num_landmarks = sc.num_agents
-        self.num_obstacles, self.horizon = 0, sc.horizon
+        sc = self._setup(scenario, num_envs, device, dtype, overrides)
         self.reach_distance = ARM_LENGTH + sc.landmark_radius
         half = sc.world_size / 2
         if half < COLLISION_RADIUS + _GAP:
@@ -168,14 +139,11 @@ class DroneWorld:
         """Start new episodes (all, or ``env_ids``) and return the observation (see module doc)."""
         if seed is not None:
             self._rng = np.random.default_rng(int(seed))
-        N, sc = self.num_agents, self.scenario
+        N = self.num_agents
         ids = self._env_ids(env_ids)
         n = len(ids)
         options = dict(options or {})
-        unknown = sorted(set(options) - set(_OPTIONS) - {"keep"})
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; expected some of {sorted(_OPTIONS) + ['keep']}")
-        given = {k: self._option(options[k], k, n, (N, d)) for k, d in _OPTIONS.items() if k in options}
+        given = self._start_state(options, n)
         r = COLLISION_RADIUS + _GAP / 2
         if "agent_pos" in given:
             pos = given["agent_pos"]
@@ -224,61 +192,26 @@ class DroneWorld:
         self._update_coverage()
         return self.observe()
 
-    def _env_ids(self, env_ids) -> np.ndarray:
-        if env_ids is None:
-            return np.arange(self.num_envs)
-        ids = np.asarray(env_ids.cpu() if torch.is_tensor(env_ids) else env_ids, dtype=np.int64).reshape(-1)
-        if len(ids) and (ids.min() < 0 or ids.max() >= self.num_envs):
-            raise ValueError(f"env_ids: expected indices in [0, {self.num_envs}), got {ids.tolist()}")
-        return ids
+    def _random_order(self, n) -> np.ndarray:
+        return self._rng.random((n, self.num_agents)).argsort(axis=1)
 
-    def _option(self, value, name, n, shape) -> np.ndarray:
-        a = np.asarray(value.detach().cpu() if torch.is_tensor(value) else value, dtype=np.float64)
-        if a.shape == shape:
-            a = np.broadcast_to(a, (n, *shape))
-        if a.shape != (n, *shape):
-            raise ValueError(f"reset option {name!r}: expected shape {shape} or {(n, *shape)}, got {a.shape}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"reset option {name!r}: expected finite values")
-        return a.copy()
-
-    def _team_mask(self, n, keep) -> np.ndarray:
-        sc, N = self.scenario, self.num_agents
-        if keep is not None:
-            k = np.asarray(keep.cpu() if torch.is_tensor(keep) else keep)
-            if k.dtype != bool or k.shape not in ((N,), (n, N)):
-                raise ValueError(f"reset option 'keep': expected a bool array of shape ({N},), got {k.shape} {k.dtype}")
-            return np.broadcast_to(k, (n, N))
-        if not sc.varying:
-            return np.ones((n, N), bool)
-        order = self._rng.random((n, N)).argsort(axis=1)
-        keep = np.zeros((n, N), bool)
-        np.put_along_axis(keep, order[:, : sc.team_after], True, axis=1)
-        return keep
-
-    def _sample(self, n, radius, heights, max_tries=10_000) -> np.ndarray:
+    def _sample(self, n, radius, heights) -> np.ndarray:
         """Rejection-sample N points per episode, pairwise at least ``2 * radius`` apart."""
         N, half = self.num_agents, self.scenario.world_size / 2 - COLLISION_RADIUS - _GAP
         out = np.zeros((n, N, 3))
-        for i in range(N):
-            todo = np.arange(n)
-            for _ in range(max_tries):
-                cand = np.concatenate([self._rng.uniform(-half, half, (len(todo), 2)),
-                                       self._rng.uniform(*heights, (len(todo), 1))], axis=1)
-                ok = (np.linalg.norm(out[todo, :i] - cand[:, None], axis=-1) >= 2 * radius).all(axis=1)
-                out[todo[ok], i] = cand[ok]
-                todo = todo[~ok]
-                if not len(todo):
-                    break
-            else:
-                raise ValueError(f"could not place {N} drones {2 * radius:.2f} m apart in a "
-                                 f"{self.scenario.world_size:g} m map; expected a larger world_size")
-        return out
+
+        def draw(m):
+            return np.concatenate([self._rng.uniform(-half, half, (m, 2)), self._rng.uniform(*heights, (m, 1))], axis=1)
+
+        def clear(todo, cand, i):
+            return (np.linalg.norm(out[todo, :i] - cand[:, None], axis=-1) >= 2 * radius).all(axis=1)
+
+        return self._place(out, draw, clear, f"{N} drones {2 * radius:.2f} m apart")
 
     # ------------------------------------------------------------------- step
     def step(self, actions) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
         """Advance every episode by one control step (``SUBSTEPS`` MuJoCo steps)."""
-        x = self._check_actions(actions)  # the commands, in the scratch array self._cmd
+        x = self._actions(actions)  # the commands, in the scratch array self._cmd
         if self._t_max >= self.horizon:
             raise ValueError(f"episode over (horizon {self.horizon} reached); expected reset() before step()")
         B, N, alive, everyone = self.num_envs, self.num_agents, self.alive, self._everyone
@@ -341,22 +274,13 @@ class DroneWorld:
             row[k] = sensors
         return rec
 
-    def _check_actions(self, actions) -> np.ndarray:
+    def _actions(self, actions) -> np.ndarray:
         """Validate ``actions``; return them as float64 in the scratch array ``self._cmd``."""
-        B, N = self.num_envs, self.num_agents
+        actions = self._check_actions(actions, integer=False, tail=(4,))
         if torch.is_tensor(actions):
-            if not actions.dtype.is_floating_point:
-                raise ValueError(f"actions: expected a float tensor of motor commands, got dtype {actions.dtype}")
             if actions.requires_grad:
                 actions = actions.detach()
             actions = (actions if actions.device.type == "cpu" else actions.cpu()).numpy()
-        elif isinstance(actions, np.ndarray):
-            if not np.issubdtype(actions.dtype, np.floating):
-                raise ValueError(f"actions: expected a float array of motor commands, got dtype {actions.dtype}")
-        else:
-            raise ValueError(f"actions: expected a float tensor of shape ({B}, {N}, 4), got {type(actions).__name__}")
-        if actions.shape != (B, N, 4):
-            raise ValueError(f"actions: expected shape (num_envs, num_agents, 4) = ({B}, {N}, 4), got {actions.shape}")
         a = self._cmd
         a[...] = actions  # float64, as MuJoCo computes
         if not np.abs(a).max() <= 1.0:  # one reduction in the common case; NaN fails it too
@@ -477,8 +401,3 @@ class DroneWorld:
 
     def info(self) -> dict[str, torch.Tensor]:
         return dict(self._info)
-
-    def __repr__(self):
-        sc = self.scenario
-        return (f"DroneWorld({sc.name!r}, num_envs={self.num_envs}, num_agents={sc.num_agents}, "
-                f"world_size={sc.world_size:g}, horizon={sc.horizon}, device={str(self.device)!r})")

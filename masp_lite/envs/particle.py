@@ -25,7 +25,7 @@ stop colliding and stop covering landmarks; ``alive`` says who is in.
 
 Observations are a dict of tensors (see :meth:`ParticleWorld.observe`); ``step`` also
 returns per-episode counters (covered landmarks, collision events, alive mask) that the
-metrics in :mod:`masp_lite.eval` consume.
+metrics in :mod:`masp_lite.evaluation` consume.
 """
 from __future__ import annotations
 
@@ -34,9 +34,10 @@ import math
 import numpy as np
 import torch
 
-from .scenarios import Scenario, get_scenario
+from .base import BatchedWorld
+from .scenarios import Scenario
 
-__all__ = ["ParticleWorld", "make", "PHYSICS", "ACTION_DIRECTIONS", "NUM_ACTIONS"]
+__all__ = ["ParticleWorld", "PHYSICS", "ACTION_DIRECTIONS", "NUM_ACTIONS", "contact_force"]
 
 #: MPE's physical constants (``mpe2``'s ``World`` and ``Entity`` defaults).
 PHYSICS = dict(dt=0.1, damping=0.25, mass=1.0, contact_force=1e2, contact_margin=1e-3,
@@ -62,7 +63,7 @@ def contact_force(delta: torch.Tensor, dist: torch.Tensor, dist_min: float,
     return delta * (contact_force * penetration / dist).unsqueeze(-1)
 
 
-class ParticleWorld:
+class ParticleWorld(BatchedWorld):
     """``num_envs`` independent MPE navigation episodes stepped together.
 
     State tensors (``B = num_envs``, ``N`` agents = landmarks, ``K`` obstacles):
@@ -71,28 +72,13 @@ class ParticleWorld:
     (landmark ever reached this episode), ``t`` (B,) steps taken.
     """
 
+    kind = "particle"
+    reset_options = {"obstacle_pos": 2, "agent_pos": 2, "landmark_pos": 2, "agent_vel": 2}
+
     def __init__(self, scenario: str | Scenario = "mpe-5", num_envs: int = 1,
                  device: str | torch.device = "cpu", seed: int | None = None,
                  dtype: torch.dtype = torch.float32, **overrides):
-        self.scenario = get_scenario(scenario, **overrides)
-        if self.scenario.kind != "particle":
-            raise ValueError(f"scenario {self.scenario.name!r} is a {self.scenario.kind} scenario; "
-                             "expected a particle scenario (mpe-*)")
-        if not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, bool) or num_envs < 1:
-            raise ValueError(f"num_envs: expected a positive int, got {num_envs!r}")
-        if dtype not in (torch.float32, torch.float64):
-            raise ValueError(f"dtype: expected torch.float32 or torch.float64, got {dtype}")
-        self.num_envs = int(num_envs)
-        try:
-            self.device = torch.device(device)
-        except (RuntimeError, TypeError) as e:
-            raise ValueError(f"device: expected a torch device such as 'cpu' or 'cuda', got {device!r}") from e
-        self.dtype = dtype
-        sc = self.scenario
-        self.num_agents = sc.num_agents
-        self.num_landmarks = sc.num_landmarks
-        self.num_obstacles = sc.num_obstacles
-        self.horizon = sc.horizon
+        self._setup(scenario, num_envs, device, dtype, overrides)
         self._rng = torch.Generator()  # spawns are drawn on the CPU: same numbers on every device
         if seed is None:
             self._rng.seed()  # fresh entropy, leaving torch's global generator alone
@@ -116,19 +102,13 @@ class ParticleWorld:
         """
         if seed is not None:
             self._rng.manual_seed(int(seed))
-        sc, B, N, K = self.scenario, self.num_envs, self.num_agents, self.num_obstacles
-        ids = self._env_ids(env_ids)
+        B, N, K = self.num_envs, self.num_agents, self.num_obstacles
+        ids = torch.from_numpy(self._env_ids(env_ids))
         n = len(ids)
         options = dict(options or {})
-        unknown = sorted(set(options) - {"agent_pos", "landmark_pos", "obstacle_pos", "agent_vel", "keep"})
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; expected agent_pos, landmark_pos, "
-                             "obstacle_pos, agent_vel, keep")
-        given = {k: self._option(options[k], k, n, shape) for k, shape in
-                 (("obstacle_pos", (K, 2)), ("agent_pos", (N, 2)), ("landmark_pos", (N, 2)),
-                  ("agent_vel", (N, 2))) if k in options}
+        given = {k: torch.from_numpy(v) for k, v in self._start_state(options, n).items()}
         obst, agents, lms = self._spawn(n, given)
-        keep = self._team_after_mask(n, options.get("keep"))
+        keep = torch.from_numpy(self._team_mask(n, options.get("keep")))
         self._check_no_overlap(agents, obst, lms)
 
         def put(name, value, shape):
@@ -153,40 +133,8 @@ class ParticleWorld:
         self.reached = self.reached | self.covered
         return self.observe()
 
-    def _env_ids(self, env_ids):
-        if env_ids is None:
-            return torch.arange(self.num_envs)
-        ids = torch.as_tensor(env_ids, dtype=torch.long).reshape(-1).cpu()
-        if len(ids) and (ids.min() < 0 or ids.max() >= self.num_envs):
-            raise ValueError(f"env_ids: expected indices in [0, {self.num_envs}), got {ids.tolist()}")
-        return ids
-
-    def _option(self, value, name, n, shape):
-        t = torch.as_tensor(np.asarray(value, dtype=np.float64) if not torch.is_tensor(value) else value,
-                            dtype=torch.float64).cpu()
-        if t.shape == shape:
-            t = t.expand(n, *shape)
-        if t.shape != (n, *shape):
-            raise ValueError(f"reset option {name!r}: expected shape {shape} or {(n, *shape)}, "
-                             f"got {tuple(t.shape)}")
-        if not torch.isfinite(t).all():
-            raise ValueError(f"reset option {name!r}: expected finite values")
-        return t.clone()
-
-    def _team_after_mask(self, n, keep):
-        sc, N = self.scenario, self.num_agents
-        if keep is not None:
-            k = torch.as_tensor(np.asarray(keep)).cpu()
-            if k.dtype != torch.bool or k.shape not in ((N,), (n, N)):
-                raise ValueError(f"reset option 'keep': expected a bool array of shape ({N},), "
-                                 f"got {tuple(k.shape)} {k.dtype}")
-            return k.expand(n, N).clone()
-        if not sc.varying:
-            return torch.ones(n, N, dtype=torch.bool)
-        order = torch.rand(n, N, generator=self._rng).argsort(dim=1)
-        keep = torch.zeros(n, N, dtype=torch.bool)
-        keep.scatter_(1, order[:, : sc.team_after], True)
-        return keep
+    def _random_order(self, n):
+        return torch.rand(n, self.num_agents, generator=self._rng).argsort(dim=1).numpy()
 
     def _spawn(self, n, given):
         """Rejection-sample non-overlapping bodies, vectorized over episodes.
@@ -204,26 +152,22 @@ class ParticleWorld:
             self._sample(n, self.num_agents, rl, [(obst, ro)])
         return obst, agents, lms
 
-    def _sample(self, n, count, radius, others, max_tries=10_000):
+    def _sample(self, n, count, radius, others):
         half = self.scenario.world_size / 2 - radius
         out = torch.zeros(n, count, 2, dtype=torch.float64)
-        for i in range(count):
-            todo = torch.arange(n)
-            for _ in range(max_tries):
-                cand = (torch.rand(len(todo), 2, generator=self._rng, dtype=torch.float64) * 2 - 1) * half
-                ok = torch.ones(len(todo), dtype=torch.bool)
-                for pos, r in [*others, (out[:, :i], radius)]:
-                    if pos.shape[1]:
-                        d = (pos[todo] - cand[:, None]).norm(dim=-1)
-                        ok &= (d >= r + radius + _SPAWN_GAP).all(dim=1)
-                out[todo[ok], i] = cand[ok]
-                todo = todo[~ok]
-                if len(todo) == 0:
-                    break
-            else:
-                raise ValueError(f"could not place {count} bodies of radius {radius} without overlap "
-                                 f"in a {self.scenario.world_size:g} m map; expected a larger world_size")
-        return out
+
+        def draw(m):
+            return (torch.rand(m, 2, generator=self._rng, dtype=torch.float64) * 2 - 1) * half
+
+        def clear(todo, cand, i):
+            ok = torch.ones(len(todo), dtype=torch.bool)
+            for pos, r in [*others, (out[:, :i], radius)]:
+                if pos.shape[1]:
+                    d = (pos[todo] - cand[:, None]).norm(dim=-1)
+                    ok &= (d >= r + radius + _SPAWN_GAP).all(dim=1)
+            return ok
+
+        return self._place(out, draw, clear, f"{count} bodies of radius {radius} without overlap")
 
     def _check_no_overlap(self, agents, obst, lms):
         sc = self.scenario
@@ -257,7 +201,7 @@ class ParticleWorld:
         pairs (agent–agent + agent–obstacle) after the step, ``agent_collisions`` (B, N)
         contacts per agent, ``alive`` (B, N) and ``done`` (B,).
         """
-        a = self._check_actions(actions)
+        a = self._actions(actions)
         if bool((self.t >= self.horizon).any()):
             raise ValueError(f"episode over (horizon {self.horizon} reached); expected reset() before step()")
         sc, p = self.scenario, PHYSICS
@@ -284,19 +228,10 @@ class ParticleWorld:
         self.reached = self.reached | self.covered
         return self.observe(), self.info()
 
-    def _check_actions(self, actions):
-        B, N = self.num_envs, self.num_agents
+    def _actions(self, actions) -> torch.Tensor:
+        actions = self._check_actions(actions, integer=True)
         if isinstance(actions, np.ndarray):
-            if not np.issubdtype(actions.dtype, np.integer):
-                raise ValueError(f"actions: expected an integer array, got dtype {actions.dtype}")
             actions = torch.from_numpy(actions)
-        if not torch.is_tensor(actions):
-            raise ValueError(f"actions: expected an integer tensor of shape ({B}, {N}), got {type(actions).__name__}")
-        if actions.dtype.is_floating_point or actions.dtype.is_complex or actions.dtype == torch.bool:
-            raise ValueError(f"actions: expected an integer tensor, got dtype {actions.dtype}")
-        if tuple(actions.shape) != (B, N):
-            raise ValueError(f"actions: expected shape (num_envs, num_agents) = ({B}, {N}), "
-                             f"got {tuple(actions.shape)}")
         actions = actions.to(self.device, torch.long)
         if bool(((actions < 0) | (actions >= NUM_ACTIONS)).any()):
             raise ValueError(f"actions: expected ids in [0, {NUM_ACTIONS}) "
@@ -343,19 +278,3 @@ class ParticleWorld:
         return {"covered": self.covered, "reached": self.reached, "collisions": self.collisions,
                 "agent_collisions": self.agent_collisions, "alive": self.alive, "done": self.done,
                 "t": self.t}
-
-    def __repr__(self):
-        sc = self.scenario
-        return (f"ParticleWorld({sc.name!r}, num_envs={self.num_envs}, num_agents={sc.num_agents}, "
-                f"num_obstacles={sc.num_obstacles}, world_size={sc.world_size:g}, horizon={sc.horizon}, "
-                f"device={str(self.device)!r})")
-
-
-def make(scenario: str | Scenario, num_envs: int = 1, device: str | torch.device = "cpu",
-         seed: int | None = None, **overrides):
-    """Batched world for ``scenario`` (particle or drone presets; see :mod:`.scenarios`)."""
-    sc = get_scenario(scenario, **overrides)
-    if sc.kind == "drone":
-        from .drones import DroneWorld  # imported lazily: MuJoCo is only needed for drones
-        return DroneWorld(sc, num_envs=num_envs, device=device, seed=seed)
-    return ParticleWorld(sc, num_envs=num_envs, device=device, seed=seed)

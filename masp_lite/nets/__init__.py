@@ -1,9 +1,10 @@
-"""MASP's networks (paper, section "Methodology").
+"""MASP's networks (paper, section "Methodology") — torch only, no I/O.
 
 * :mod:`.encoders` — ``SelfEncoder`` (eqs. 2-3) and ``CrossEncoder`` (eq. 4);
 * :mod:`.fusion` — ``group_division`` and ``GroupInformationFusion`` (GCN over groups);
-* :mod:`.policies` — ``GoalMatcher``, ``CoordinatedActionExecutor``, the centralized
-  critics, ``MASPNets`` (all four) and ``MASPPolicy`` (the ``masp`` method).
+* :mod:`.decoding` — how the Goal Matcher's scores become goals;
+* :mod:`.masp` — ``GoalMatcher``, ``CoordinatedActionExecutor``, the centralized
+  critics, their input features and ``MASPNets`` (all four).
 
 Submodules are imported on demand, so importing this package costs nothing.
 """

@@ -33,7 +33,7 @@ from torch import nn
 
 from .encoders import mlp
 
-__all__ = ["group_division", "nearest_order", "gcn_layer", "GroupInformationFusion", "random_permutation", "linear_relu"]
+__all__ = ["group_division", "gcn_layer", "GroupInformationFusion", "random_permutation", "linear_relu"]
 
 
 class _LinearReLU(torch.autograd.Function):
@@ -75,24 +75,11 @@ def random_permutation(batch: int, num_agents: int, generator: torch.Generator |
     return torch.rand(batch, num_agents, generator=generator).argsort(dim=-1).to(device)
 
 
-def nearest_order(pos: torch.Tensor, alive: torch.Tensor) -> torch.Tensor:
-    """Per-agent orders (B, N, N) for :func:`group_division`: row ``k`` lists the agents by
-    distance from agent ``k`` (``k`` first, dropped agents last, ties by index).
-
-    With it the groups of ``k`` hold its nearest others together (nearest two in the first
-    group, and so on) instead of a random split; the paper leaves the order open
-    (``MASPNets(group_order="nearest")``).
-    """
-    d = torch.cdist(pos, pos)
-    d = d.masked_fill(~alive.unsqueeze(1), float("inf"))
-    return d.argsort(dim=-1, stable=True)
-
-
 def group_division(perm: torch.Tensor, group_size: int = 3) -> torch.Tensor:
     """The paper's group division for every agent of every world.
 
     ``perm`` (B, N): a random order of the agents per world (see :func:`random_permutation`);
-    or (B, N, N): one order per agent (row ``k`` for agent ``k``, e.g. :func:`nearest_order`).
+    or (B, N, N): one order per agent (row ``k`` for agent ``k``).
     Returns a long tensor (B, N, G, n) of agent indices with ``G = ceil((N - 1) / m)``
     groups of ``n = m + 1`` members, ``m = min(group_size - 1, N - 1)``; entry
     ``[b, k, g, 0]`` is ``k`` itself (k joins every group), the others of agent ``k`` are
@@ -144,7 +131,7 @@ class GroupInformationFusion(nn.Module):
 
     * ``pair_features`` (B, N, N, F): row ``[b, k, j]`` describes agent ``j`` as seen from
       agent ``k`` (relative position and velocity, see
-      :func:`masp_lite.nets.policies.pair_features`); the node of ``k`` itself is ``[b, k, k]``;
+      :func:`masp_lite.nets.masp.pair_features`); the node of ``k`` itself is ``[b, k, k]``;
     * ``groups`` (B, N, G, n) from :func:`group_division`;
     * ``alive`` (B, N) bool.
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from masp_lite.envs.particle import ACTION_DIRECTIONS, PHYSICS
+from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
 
 __all__ = ["velocity_to_action", "next_velocities", "arrive_velocity", "track_path",
            "MAX_SPEED", "ARRIVE_GAIN"]

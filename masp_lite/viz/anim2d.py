@@ -15,7 +15,7 @@ What a frame shows, all circles to scale on the ``[-ws/2, ws/2]`` map:
   policy exposes ``assignment``), light blue without one, pale dashed outlines once
   dropped from the team; red for the step in which they are in contact;
 * a title with the step, the success rate so far (fixed teams: covered now; varying
-  teams: ever reached) and the collision rate so far, as in :mod:`masp_lite.eval`.
+  teams: ever reached) and the collision rate so far, as in :mod:`masp_lite.evaluation`.
 
 Frame keys: ``agent_pos`` (N, 2), ``landmark_pos`` (L, 2), ``obstacle_pos`` (K, 2),
 ``alive`` (N,), ``covered`` (L,), ``reached`` (L,), ``agent_collisions`` (N,),

@@ -61,7 +61,7 @@ def record_episode(method, scenario, seed: int = 0, stride: int = _FPS_STEPS, **
     """
     from ..envs import make
     from ..envs.drone_model import CONTROL_DT
-    from ..methods import make_policy
+    from ..policies import make_policy
 
     if not isinstance(stride, int) or stride < 1:
         raise ValueError(f"stride: expected a positive int, got {stride!r}")

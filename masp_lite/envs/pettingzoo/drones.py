@@ -1,6 +1,6 @@
 """PettingZoo face of the drone world: one episode as a ``pettingzoo.ParallelEnv``.
 
-``parallel_env(scenario, render_mode=None, **overrides)`` wraps a
+``masp_lite.envs.parallel_env(scenario, render_mode=None, **overrides)`` wraps a
 :class:`~masp_lite.envs.drones.DroneWorld` with ``num_envs=1`` (physics, spawns, crashes
 and team change are the world's).
 
@@ -38,24 +38,18 @@ one. There is no built-in render mode: 3-D playback is :mod:`masp_lite.viz.meshc
 """
 from __future__ import annotations
 
-
 import gymnasium
 import numpy as np
 import torch
 
-from .drones import DroneWorld
-from .pettingzoo import WorldParallelEnv
-from .scenarios import Scenario, get_scenario
+from ..drones import DroneWorld
+from ..scenarios import Scenario, get_scenario
+from .base import WorldParallelEnv
 
-__all__ = ["parallel_env", "DroneParallelEnv", "RESET_OPTIONS"]
+__all__ = ["DroneParallelEnv", "RESET_OPTIONS"]
 
 RESET_OPTIONS = ("agent_pos", "agent_vel", "agent_quat", "agent_angvel", "landmark_pos", "keep")
 LOCAL_RATIO = 0.5
-
-
-def parallel_env(scenario: str | Scenario = "drone-5", render_mode: str | None = None, **overrides):
-    """A PettingZoo ``ParallelEnv`` over one episode of a drone scenario."""
-    return DroneParallelEnv(get_scenario(scenario, **overrides), render_mode=render_mode)
 
 
 class DroneParallelEnv(WorldParallelEnv):

@@ -1,13 +1,13 @@
-"""``python -m masp_lite train --method masp --scenario mpe-20 [--out DIR] [--resume] [--seed S] [--set k=v]``.
+"""Training runs: a folder that survives being killed, a manifest, and shipping the weights.
 
-Trains MASP (:class:`~masp_lite.algos.masp_trainer.MASPTrainer`) and writes, in ``--out``
-(default ``runs/masp-SCENARIO-seedS``):
+:func:`train` runs MASP (:class:`~masp_lite.algos.masp_trainer.MASPTrainer`) and writes, in
+its run folder (``python -m masp_lite train`` defaults to ``runs/masp-SCENARIO-seedS``):
 
 * ``state.pt`` — the full training state (weights, optimizers, value norms, every RNG
   state), saved atomically (temporary file + ``os.replace``) every ``checkpoint_every``
   iterations; ``--resume`` continues from it and ends with exactly the parameters an
   uninterrupted run would have (the RNG states make the rest of the run identical);
-* ``weights.pt`` — the latest networks in the shipped format (:mod:`masp_lite.checkpoints`);
+* ``weights.pt`` — the latest networks in the shipped format (:mod:`masp_lite.weights`);
 * ``progress.csv`` — one row per iteration: env steps, wall-clock, training SR/Steps/CR,
   mean rewards, losses and entropies of both levels, and the periodic evaluation
   (deterministic policies, ``eval_episodes`` episodes, fixed evaluation seed);
@@ -16,19 +16,20 @@ Trains MASP (:class:`~masp_lite.algos.masp_trainer.MASPTrainer`) and writes, in 
   ended early by resuming it with ``--set updates=N`` (N = iterations done): nothing in the
   schedule depends on ``updates``, so the manifest's configuration then reproduces it.
 
-``--set`` takes any :class:`~masp_lite.algos.mappo.MAPPOConfig` field or scenario override
-(``--set updates=300 --set num_envs=32``). ``--init PATH`` starts from a weights file
-(fine-tuning, e.g. mpe-50 from the mpe-20 weights); weights without ``neighbour_goals``
-start a run that has it through :meth:`~masp_lite.nets.policies.MASPNets.with_neighbour_goals`
-(same behaviour, the new inputs weighted 0). Refused with one clear error, nothing
-overwritten: an unknown method, field or value; ``--resume`` without ``state.pt``; an
-existing ``state.pt`` without ``--resume``; a corrupt state; a state trained with another
+The configuration is a :class:`~masp_lite.config.TrainConfig`. ``init`` starts from a
+weights file of the same architecture (fine-tuning, e.g. mpe-50 from the mpe-20 weights).
+Refused with one clear error, nothing overwritten: ``resume`` without ``state.pt``; an
+existing ``state.pt`` without ``resume``; a corrupt state; a state trained with another
 scenario or configuration (only ``updates`` may grow on resume).
+
+:func:`ship_run` copies a finished run's weights into a weights folder (the source
+tree's ``masp_lite/weights/``, given explicitly: nothing is written into an installed
+package) and its whole history (manifests and curves of every stage) into a history
+folder (``results/training/``).
 """
 from __future__ import annotations
 
 import csv
-import dataclasses
 import io
 import json
 import os
@@ -41,10 +42,14 @@ from pathlib import Path
 
 import torch
 
-from ..checkpoints import atomic_write_bytes, load_weights, save_weights, sha256
-from .mappo import MAPPOConfig
+from .algos.masp_trainer import MASPTrainer
+from .config import TrainConfig, field_types, parse_sets
+from .envs import OVERRIDES, Scenario, make
+from .evaluation import collision_rate, rollout, steps, success_rate
+from .policies.masp import MASPPolicy
+from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256
 
-__all__ = ["add_arguments", "run", "train", "parse_config", "evaluate_nets", "ship_run", "CSV_FIELDS"]
+__all__ = ["train", "parse_config", "evaluate_nets", "ship_run", "CSV_FIELDS", "EVAL_SEED"]
 
 CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward",
               "gm_policy_loss", "gm_value_loss", "gm_entropy", "cae_policy_loss", "cae_value_loss", "cae_entropy",
@@ -52,39 +57,16 @@ CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "tr
 EVAL_SEED = 12_345
 
 
-def parse_config(sets) -> tuple[MAPPOConfig, dict]:
-    """``KEY=VALUE`` strings -> (MAPPOConfig, scenario overrides)."""
-    from ..envs import OVERRIDES
-    fields = {f.name: f for f in dataclasses.fields(MAPPOConfig)}
-    cfg, overrides = {}, {}
-    for item in sets or []:
-        key, sep, text = item.partition("=")
-        if not sep:
-            raise ValueError(f"--set {item!r}: expected KEY=VALUE")
-        if key in fields:
-            typ = fields[key].type if isinstance(fields[key].type, type) else eval(fields[key].type)  # noqa: S307
-            try:
-                if typ is bool:  # bool("False") is True: read the word
-                    if text.lower() not in ("true", "false"):
-                        raise ValueError(text)
-                    cfg[key] = text.lower() == "true"
-                else:
-                    cfg[key] = typ(float(text)) if typ is int and float(text).is_integer() else typ(text)
-            except ValueError:
-                raise ValueError(f"--set {key}={text!r}: expected a {typ.__name__}") from None
-        elif key in OVERRIDES:
-            overrides[key] = OVERRIDES[key](text)
-        else:
-            raise ValueError(f"--set {key!r}: unknown; expected a training field {sorted(fields)} "
-                             f"or a scenario override {sorted(OVERRIDES)}")
-    return MAPPOConfig(**cfg), overrides
+def parse_config(sets) -> tuple[TrainConfig, dict]:
+    """``KEY=VALUE`` strings -> (TrainConfig, scenario overrides), by :func:`masp_lite.config.parse_sets`."""
+    types = field_types(Scenario)
+    got = parse_sets(sets, {"training setting": field_types(TrainConfig),
+                            "scenario override": {k: types[k] for k in OVERRIDES}})
+    return TrainConfig.from_flat(got["training setting"]), got["scenario override"]
 
 
 def evaluate_nets(nets, scenario, overrides=None, episodes: int = 32, seed: int = EVAL_SEED) -> dict:
     """SR, Steps and CR of the deterministic policies over ``episodes`` episodes (means)."""
-    from ..envs import make
-    from ..eval import collision_rate, rollout, steps, success_rate
-    from ..nets.policies import MASPPolicy
     world = make(scenario, num_envs=min(episodes, 100), seed=seed, **(overrides or {}))
     was = nets.training
     nets.eval()
@@ -123,11 +105,10 @@ def _read_csv(path: Path, upto: int) -> list[dict]:
         return [r for r in csv.DictReader(f) if int(r["iteration"]) <= upto]
 
 
-def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = False, init=None,
+def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = False, init=None,
           overrides: dict | None = None, progress: bool = True, command: str | None = None,
           on_iteration=None) -> dict:
     """Train MASP; returns the manifest. ``on_iteration(trainer)`` runs after every iteration."""
-    from .masp_trainer import MASPTrainer
     out = Path(out)
     state_path = out / "state.pt"
     if resume and not state_path.exists():
@@ -141,8 +122,8 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
     if resume:
         state = _load_state(state_path)
         saved = dict(state.get("config", {}))
-        now = dataclasses.asdict(cfg)
-        defaults = dataclasses.asdict(MAPPOConfig())  # a field added since the state was saved has its default
+        now = cfg.flat()
+        defaults = TrainConfig().flat()  # a field added since the state was saved has its default
         diff = sorted(k for k in now if k != "updates" and saved.get(k, defaults[k]) != now[k])
         if state.get("scenario") != trainer.world.scenario.name or state.get("overrides", {}) != (overrides or {}):
             raise ValueError(f"{state_path} was trained on {state.get('scenario')!r} {state.get('overrides')}; "
@@ -157,8 +138,6 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
         rows = _read_csv(out / "progress.csv", trainer.iterations)
     elif init is not None:
         nets, rec = load_weights(init, any_scenario=True)
-        if nets.arch != trainer.nets.arch and {**nets.arch, "neighbour_goals": True} == trainer.nets.arch:
-            nets = nets.with_neighbour_goals()  # same behaviour, new inputs weighted 0
         if nets.arch != trainer.nets.arch:
             raise ValueError(f"--init {init}: architecture {nets.arch} differs from the configured {trainer.nets.arch}")
         trainer.nets.load_state_dict(nets.state_dict())
@@ -178,38 +157,38 @@ def train(scenario: str, cfg: MAPPOConfig, out, seed: int = 0, resume: bool = Fa
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=cfg.updates, initial=trainer.iterations, unit="it", desc=f"masp on {sc}")
+        bar = tqdm(total=cfg.run.updates, initial=trainer.iterations, unit="it", desc=f"masp on {sc}")
     try:
-        while trainer.iterations < cfg.updates:
+        while trainer.iterations < cfg.run.updates:
             row = trainer.iteration()
             row["wall_s"] = round(wall(), 2)
-            if cfg.eval_every and trainer.iterations % cfg.eval_every == 0:
-                ev = evaluate_nets(trainer.nets, sc, overrides, cfg.eval_episodes)
+            if cfg.run.eval_every and trainer.iterations % cfg.run.eval_every == 0:
+                ev = evaluate_nets(trainer.nets, sc, overrides, cfg.run.eval_episodes)
                 row.update({f"eval_{k}": ev[k] for k in ("sr", "steps", "cr")})
             rows.append({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
             if bar is not None:
                 bar.update(1)
                 bar.set_postfix(sr=f"{row['train_sr']:.2f}", steps=f"{row['train_steps']:.1f}",
                                 cr=f"{row['train_cr']:.2f}")
-            if trainer.iterations % cfg.checkpoint_every == 0 or trainer.iterations == cfg.updates:
+            if trainer.iterations % cfg.run.checkpoint_every == 0 or trainer.iterations == cfg.run.updates:
                 save()
             if on_iteration is not None:
                 on_iteration(trainer)
     finally:
         if bar is not None:
             bar.close()
-    final = evaluate_nets(trainer.nets, sc, overrides, cfg.eval_episodes)
+    final = evaluate_nets(trainer.nets, sc, overrides, cfg.run.eval_episodes)
     manifest = {
         "method": "masp", "scenario": sc, "overrides": dict(overrides or {}), "seed": int(seed),
         "command": first_command or command or default_command,
         "last_command": command or default_command,
-        "init": str(init) if init is not None else None, "config": dataclasses.asdict(cfg),
+        "init": str(init) if init is not None else None, "config": cfg.flat(),
         "arch": dict(trainer.nets.arch), "iterations": trainer.iterations, "env_steps": trainer.env_steps,
         "wall_clock_s": round(wall(), 1), "started": started,
         "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "torch": torch.__version__,
                     "torch_threads": torch.get_num_threads()},
-        "final_eval": {"episodes": cfg.eval_episodes, "seed": EVAL_SEED, **final},
+        "final_eval": {"episodes": cfg.run.eval_episodes, "seed": EVAL_SEED, **final},
         "weights_sha256": sha256(out / "weights.pt"),
     }
     atomic_write_bytes(out / "manifest.json", (json.dumps(manifest, indent=2) + "\n").encode())
@@ -225,78 +204,59 @@ def _run_info(m: dict) -> dict:
     return {**{k: m[k] for k in _RUN_INFO}, **{k: m[k] for k in _RUN_EXTRA if k in m}}
 
 
-def ship_run(run_dir, evaluation: dict | None = None, note: str | None = None, earlier=()) -> dict:
-    """Copy a finished run's ``weights.pt`` into :mod:`masp_lite.checkpoints` and record it in the manifest.
+def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dict | None = None,
+             note: str | None = None) -> dict:
+    """Keep a finished run: its history in ``history_dir``, its weights shipped or beside the history.
 
-    The entry keeps the run's manifest (command, seed, env steps, wall-clock, machine, final
-    evaluation) plus the SHA-256 of the copied file, the run's ``progress.csv`` (copied as
-    ``<scenario>.progress.csv``), an optional ``evaluate()`` record and a free-text ``note``
-    (e.g. the machine's load while it trained).
+    ``history_dir`` (``results/training/``) receives ``SCENARIO-seedS.manifest.json`` —
+    every stage's run information (command, configuration, seed, env steps, wall-clock,
+    machine, final evaluation) and curves (``SCENARIO-seedS[.stageK].progress.csv``), from
+    scratch to the last fine-tuning, plus ``evaluation`` (an ``evaluate()`` record) and a
+    free-text ``note``. ``earlier``: the stages this run was fine-tuned from, oldest first,
+    each a pair of paths ``(manifest.json, progress.csv)`` of a finished run.
 
-    ``earlier``: the stages this run was fine-tuned from, oldest first, each a pair of
-    paths ``(manifest.json, progress.csv)`` of a finished run. They are recorded under
-    ``stages`` (their run information, and their curves copied as
-    ``<scenario>.stageK.progress.csv``), so the shipped weights' whole training history —
-    from scratch to the last fine-tuning — stays with them.
+    With ``weights_dir`` (the source tree's ``masp_lite/weights/``) the weights become the
+    shipped ``SCENARIO.pt`` there, with a slim entry in its ``manifest.json``; without it
+    they are kept as ``SCENARIO-seedS.pt`` in ``history_dir`` (training seeds that are not
+    shipped). Returns the history manifest.
     """
-    from ..checkpoints import HERE, MANIFEST, read_weights
-    run_dir = Path(run_dir)
+    run_dir, history_dir = Path(run_dir), Path(history_dir)
     if not (run_dir / "manifest.json").exists():
         raise ValueError(f"{run_dir}: expected a finished run (manifest.json)")
     m = json.loads((run_dir / "manifest.json").read_text())
     rec = read_weights(run_dir / "weights.pt")
-    name = rec["scenario"]
+    name, seed = rec["scenario"], int(m["seed"])
+    stem = f"{name}-seed{seed}"
     stages = []
-    for k, (stage_manifest, stage_progress) in enumerate(earlier, start=1):
+    for k, (stage_manifest, stage_progress) in enumerate([*earlier, (run_dir / "manifest.json",
+                                                                     run_dir / "progress.csv")], start=1):
         sm = json.loads(Path(stage_manifest).read_text())
         missing = [key for key in _RUN_INFO if key not in sm]
         if missing:
             raise ValueError(f"{stage_manifest}: expected a run manifest; missing {missing}")
-        target = f"{name}.stage{k}.progress.csv"
-        atomic_write_bytes(HERE / target, Path(stage_progress).read_bytes())
-        stages.append({"scenario": sm.get("scenario"), "training": _run_info(sm),
-                       "progress": target})
+        target = f"{stem}.stage{k}.progress.csv" if k <= len(earlier) else f"{stem}.progress.csv"
+        if Path(stage_progress).exists():
+            atomic_write_bytes(history_dir / target, Path(stage_progress).read_bytes())
+        stages.append({"scenario": sm.get("scenario"), "training": _run_info(sm), "progress": target})
     data = (run_dir / "weights.pt").read_bytes()
-    atomic_write_bytes(HERE / f"{name}.pt", data)
-    progress = None
-    if (run_dir / "progress.csv").exists():  # the training curves travel with the weights
-        progress = f"{name}.progress.csv"
-        atomic_write_bytes(HERE / progress, (run_dir / "progress.csv").read_bytes())
-    manifest = json.loads(MANIFEST.read_text()) if MANIFEST.exists() else {}
-    run_info = _run_info(m)
-    manifest[name] = {"file": f"{name}.pt", "sha256": sha256(HERE / f"{name}.pt"), "scenario": name,
-                      "arch": rec["arch"], "training": run_info, "evaluation": evaluation, "note": note,
-                      "progress": progress, "stages": stages}
-    atomic_write_bytes(MANIFEST, (json.dumps(manifest, indent=2, sort_keys=True) + "\n").encode())
-    return manifest[name]
-
-
-def add_arguments(parser) -> None:
-    parser.add_argument("--method", default="masp", help="learned method to train (only 'masp' here)")
-    parser.add_argument("--scenario", required=True, help="particle scenario, e.g. mpe-20")
-    parser.add_argument("--out", default=None, help="run folder (default runs/masp-SCENARIO-seedS)")
-    parser.add_argument("--resume", action="store_true", help="continue the run saved in --out")
-    parser.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
-    parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
-                        help="a MAPPOConfig field or scenario override; repeatable")
-    parser.add_argument("--init", default=None, help="start from this weights file (fine-tuning)")
-    parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-
-
-def run(args) -> int:
-    if args.method != "masp":
-        raise ValueError(f"train: unknown method {args.method!r}; expected 'masp'")
-    if args.threads < 1:
-        raise ValueError(f"--threads: expected a positive int, got {args.threads}")
-    torch.set_num_threads(args.threads)
-    cfg, overrides = parse_config(args.sets)
-    out = args.out or f"runs/masp-{args.scenario}-seed{args.seed}"
-    command = "python -m masp_lite train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
-        if len(sys.argv) > 1 and sys.argv[1] == "train" else None
-    m = train(args.scenario, cfg, out, seed=args.seed, resume=args.resume, init=args.init, overrides=overrides,
-              progress=not args.quiet, command=command)
-    ev = m["final_eval"]
-    print(f"masp on {m['scenario']}: SR {ev['sr']:.3f}  Steps {ev['steps']:.2f}  CR {ev['cr']:.3f}  "
-          f"({m['env_steps']} env steps, {m['wall_clock_s']:.0f} s) -> {out}")
-    return 0
+    if weights_dir is None:
+        file, target = f"{stem}.pt", history_dir / f"{stem}.pt"
+    else:
+        file, target = f"{name}.pt", Path(weights_dir) / f"{name}.pt"
+    atomic_write_bytes(target, data)
+    digest = sha256(target)
+    history = {"scenario": name, "seed": seed, "file": file, "sha256": digest, "arch": rec["arch"],
+               "evaluation": evaluation, "note": note, "stages": stages}
+    atomic_write_bytes(history_dir / f"{stem}.manifest.json",
+                       (json.dumps(history, indent=2, sort_keys=True) + "\n").encode())
+    if weights_dir is not None:
+        manifest_path = Path(weights_dir) / "manifest.json"
+        manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
+        runs = [st["training"] for st in stages]
+        manifest[name] = {"file": file, "sha256": digest, "scenario": name, "arch": rec["arch"], "seed": seed,
+                          "command": runs[-1]["command"], "stages": len(runs),
+                          "env_steps": sum(r["env_steps"] for r in runs),
+                          "wall_clock_s": round(sum(r["wall_clock_s"] for r in runs), 1),
+                          "machine": runs[-1]["machine"], "history": f"results/training/{stem}.manifest.json"}
+        atomic_write_bytes(manifest_path, (json.dumps(manifest, indent=2, sort_keys=True) + "\n").encode())
+    return history

@@ -27,12 +27,12 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from masp_lite.algos.assignment import hungarian, hungarian_random_subset
+from ..algos.assignment import hungarian, hungarian_random_subset
 
-from .controllers import MAX_SPEED, arrive_velocity, track_path, velocity_to_action
-from .orca import orca_velocities
-from .rrt_star import plan_rrt_star, segments_blocked
-from .voronoi import plan_voronoi
+from ..planners.controllers import MAX_SPEED, arrive_velocity, track_path, velocity_to_action
+from ..planners.orca import orca_velocities
+from ..planners.rrt_star import plan_rrt_star, segments_blocked
+from ..planners.voronoi import plan_voronoi
 
 __all__ = ["HungarianPlanner", "HOrca", "HRRTStar", "HVoronoi", "split_collisions", "GLOBAL_STEP"]
 

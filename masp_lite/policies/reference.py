@@ -110,13 +110,13 @@ class HungarianGreedy:
     Agents without a goal brake to a stop. No collision avoidance.
 
     On a drone scenario the class hands over to
-    ``masp_lite.planners.drone_control.DroneHungarianGreedy(world, **options)`` (its own
+    ``masp_lite.policies.drones.DroneHungarianGreedy(world, **options)`` (its own
     options; ``global_step`` is a particle-world option).
     """
 
     def __new__(cls, world, *args, **options):
         if getattr(getattr(world, "scenario", None), "kind", None) == "drone":
-            from ..planners.drone_control import DroneHungarianGreedy  # MuJoCo only when needed
+            from .drones import DroneHungarianGreedy  # MuJoCo only when needed
             return DroneHungarianGreedy(world, *args, **options)
         return super().__new__(cls)
 

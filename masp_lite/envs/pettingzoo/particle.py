@@ -1,9 +1,8 @@
 """PettingZoo face of the particle world: one episode as a ``pettingzoo.ParallelEnv``.
 
-``parallel_env(scenario, render_mode=None, **overrides)`` wraps a
-:class:`~masp_lite.envs.particle.ParticleWorld` with ``num_envs=1``; the physics, spawns
-and team-size change are the world's. Drone presets (``kind == "drone"``) are handed to
-:mod:`masp_lite.envs.drone_pettingzoo`, imported only when asked for.
+``masp_lite.envs.parallel_env(scenario, render_mode=None, **overrides)`` wraps a
+:class:`~masp_lite.envs.particle.ParticleWorld` with ``num_envs=1`` in a
+:class:`ParticleParallelEnv`; the physics, spawns and team-size change are the world's.
 
 ========================  ===============================================================
 Agents                    ``agent_0`` … ``agent_{N-1}``
@@ -58,59 +57,20 @@ animations.
 """
 from __future__ import annotations
 
-import warnings
-
 import gymnasium
 import numpy as np
 import torch
-from pettingzoo import ParallelEnv
 
-from .particle import NUM_ACTIONS, ParticleWorld
-from .scenarios import Scenario, get_scenario
+from ..particle import NUM_ACTIONS, ParticleWorld
+from ..scenarios import Scenario, get_scenario
+from .base import WorldParallelEnv
 
-__all__ = ["parallel_env", "ParticleParallelEnv", "LOCAL_RATIO", "RESET_OPTIONS"]
+__all__ = ["ParticleParallelEnv", "LOCAL_RATIO", "RESET_OPTIONS"]
 
 #: Weight of the agent's own contact penalty; ``1 - LOCAL_RATIO`` weighs the team's coverage term.
 LOCAL_RATIO = 0.5
 #: Start-state keys ``reset(options=...)`` understands.
 RESET_OPTIONS = ("agent_pos", "landmark_pos", "obstacle_pos", "agent_vel", "keep")
-
-
-def parallel_env(scenario: str | Scenario = "mpe-5", render_mode: str | None = None, **overrides):
-    """A PettingZoo ``ParallelEnv`` over one episode of ``scenario`` (any preset)."""
-    sc = get_scenario(scenario, **overrides)
-    if sc.kind == "drone":
-        from . import drone_pettingzoo  # MuJoCo is only needed for drones
-        return drone_pettingzoo.parallel_env(scenario, render_mode, **overrides)
-    return ParticleParallelEnv(sc, render_mode=render_mode)
-
-
-class WorldParallelEnv(ParallelEnv):
-    """What both worlds' PettingZoo faces share: spaces by agent, the world, reset options."""
-
-    reset_options: tuple[str, ...] = ()
-    """The reset options this face understands; others are ignored with a warning."""
-
-    def observation_space(self, agent):
-        return self.observation_spaces[agent]
-
-    def action_space(self, agent):
-        return self.action_spaces[agent]
-
-    @property
-    def world(self):
-        """The underlying batched world (``num_envs == 1``)."""
-        return self._world
-
-    def _known_options(self, options: dict | None) -> dict:
-        """The understood reset options. Unknown keys only warn: PettingZoo's own API test
-        resets with ``options={"options": 1}``."""
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(self.reset_options))
-        if unknown:
-            warnings.warn(f"reset: ignoring unknown option(s) {unknown}; understood options are "
-                          f"{list(self.reset_options)}", stacklevel=3)
-        return {k: v for k, v in options.items() if k in self.reset_options}
 
 
 class ParticleParallelEnv(WorldParallelEnv):

@@ -1,4 +1,4 @@
-"""Paper-format tables of :func:`masp_lite.eval.evaluate` records.
+"""Paper-format tables of :func:`masp_lite.evaluation.evaluate` records.
 
 Every cell is "mean (std)" with two decimals, as in the paper's tables; Steps is a
 backslash when no episode reached SR 1 (the paper's rule). Plain text, markdown and LaTeX.

@@ -1,14 +1,19 @@
-"""Shipped MASP weights and the checks every weights file passes before it is used.
+"""MASP weights files: save, load and the checks every file passes before it is used.
+
+This folder also holds the shipped weights, one file per scenario (``mpe-5.pt``, ...), and
+``manifest.json``: the package's only data.
 
 A weights file is a ``torch.save`` of plain tensors and numbers (it loads with
 ``torch.load(..., weights_only=True)``)::
 
-    {"format": FORMAT, "scenario": "mpe-20", "arch": {...MASPNets.arch...},
+    {"format": FORMAT, "scenario": "mpe-20", "arch": {...NetConfig fields...},
      "state_dict": {...all four networks...}}
 
-``manifest.json`` in this folder lists the shipped files, one entry per scenario: file
-name, SHA-256, architecture, training command, seed, environment steps, wall-clock, the
-machine that trained it and the final evaluation. :func:`load_weights` refuses (one clear
+``manifest.json`` lists the shipped files, one entry per scenario: file name, SHA-256,
+architecture, training seed, the last training command, environment steps and
+wall-clock summed over every stage, and where the whole training history is kept
+(``results/training/SCENARIO-seedS.manifest.json`` in the repository: every stage's
+command, configuration, machine and curves). :func:`load_weights` refuses (one clear
 ``ValueError``) a missing, truncated or corrupt file, a file whose hash differs from the
 manifest, another architecture, or weights trained for another scenario. Scenarios with a
 team change, or with overrides such as ``num_agents=100``, use the weights of the preset
@@ -26,8 +31,10 @@ from pathlib import Path
 
 import torch
 
-__all__ = ["FORMAT", "HERE", "MANIFEST", "save_weights", "load_weights", "default_checkpoint",
-           "base_scenario", "sha256", "atomic_write_bytes"]
+from ..nets.masp import MASPNets
+
+__all__ = ["FORMAT", "HERE", "MANIFEST", "save_weights", "load_weights", "read_weights", "read_manifest",
+           "default_checkpoint", "base_scenario", "sha256", "atomic_write_bytes"]
 
 FORMAT = "masp-lite/masp-weights/1"
 HERE = Path(__file__).resolve().parent
@@ -64,14 +71,15 @@ def atomic_write_bytes(path, data: bytes) -> None:
 
 
 def save_weights(path, nets, scenario: str) -> None:
-    """Save ``nets`` (a :class:`~masp_lite.nets.policies.MASPNets`) atomically as a weights file."""
+    """Save ``nets`` (a :class:`~masp_lite.nets.masp.MASPNets`) atomically as a weights file."""
     buf = io.BytesIO()
     torch.save({"format": FORMAT, "scenario": base_scenario(scenario), "arch": dict(nets.arch),
                 "state_dict": {k: v.detach().cpu().clone() for k, v in nets.state_dict().items()}}, buf)
     atomic_write_bytes(path, buf.getvalue())
 
 
-def _manifest() -> dict:
+def read_manifest() -> dict:
+    """The shipped weights' manifest: ``{scenario: entry}``."""
     if not MANIFEST.exists():
         return {}
     return json.loads(MANIFEST.read_text())
@@ -80,10 +88,10 @@ def _manifest() -> dict:
 def default_checkpoint(scenario) -> Path:
     """The shipped weights file for ``scenario``; a clear error when none is shipped."""
     name = base_scenario(scenario)
-    entry = _manifest().get(name)
+    entry = read_manifest().get(name)
     if entry is None:
         raise ValueError(f"masp: no shipped weights for scenario {name!r}; expected one of "
-                         f"{sorted(_manifest())} or a --checkpoint PATH")
+                         f"{sorted(read_manifest())} or a --checkpoint PATH")
     return HERE / entry["file"]
 
 
@@ -92,7 +100,7 @@ def read_weights(path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"checkpoint {str(path)!r}: expected an existing weights file")
-    shipped = {v["file"]: v for v in _manifest().values()}
+    shipped = {v["file"]: v for v in read_manifest().values()}
     if path.resolve().parent == HERE and path.name in shipped and sha256(path) != shipped[path.name]["sha256"]:
         raise ValueError(f"checkpoint {path.name!r}: contents differ from manifest.json (corrupt or replaced)")
     try:
@@ -107,12 +115,11 @@ def read_weights(path) -> dict:
 
 
 def load_weights(path=None, scenario=None, any_scenario: bool = False):
-    """Build :class:`~masp_lite.nets.policies.MASPNets` from a weights file; returns ``(nets, record)``.
+    """Build :class:`~masp_lite.nets.masp.MASPNets` from a weights file; returns ``(nets, record)``.
 
     ``path`` ``None`` means the shipped file for ``scenario``. Unless ``any_scenario``,
     the file must have been trained for ``base_scenario(scenario)``.
     """
-    from ..nets.policies import MASPNets
     if path is None:
         if scenario is None:
             raise ValueError("load_weights: expected a path or a scenario")
@@ -124,7 +131,7 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
     try:
         nets = MASPNets(**rec["arch"])
         nets.load_state_dict(rec["state_dict"])
-    except (TypeError, RuntimeError, KeyError) as e:
+    except (TypeError, ValueError, RuntimeError, KeyError) as e:
         raise ValueError(f"checkpoint {str(path)!r}: architecture does not match MASPNets "
                          f"({type(e).__name__}: {str(e)[:120]})") from None
     return nets, rec

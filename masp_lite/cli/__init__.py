@@ -1,0 +1,57 @@
+"""Command line: ``python -m masp_lite COMMAND ...`` — one module per command, argparse only.
+
+Each command module (:mod:`.evaluate`, :mod:`.train`, :mod:`.play`, :mod:`.bench`) provides
+``add_arguments(parser)`` and ``run(args) -> int`` over the library's public functions;
+this file only dispatches, so commands stay independent. A ``ValueError`` (bad input)
+becomes one ``error: ...`` line and exit status 2.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+__all__ = ["COMMANDS", "main"]
+
+#: command -> (module, one-line help)
+COMMANDS = {
+    "evaluate": ("masp_lite.cli.evaluate", "evaluate a method on a scenario (SR, Steps, CR, decision time)"),
+    "train": ("masp_lite.cli.train", "train a learned method (checkpoints, resume, manifest)"),
+    "play": ("masp_lite.cli.play", "record an episode as .gif/.mp4 (2-D) or .html (3-D)"),
+    "bench": ("masp_lite.cli.bench", "throughput and latency benchmarks"),
+}
+
+
+def _usage() -> str:
+    lines = ["usage: python -m masp_lite COMMAND [options]", "", "commands:"]
+    lines += [f"  {name:<10} {help_}" for name, (_, help_) in COMMANDS.items()]
+    lines += ["", "python -m masp_lite COMMAND --help shows a command's options."]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(_usage())
+        return 0
+    name, rest = argv[0], argv[1:]
+    if name not in COMMANDS:
+        print(f"unknown command {name!r}; expected one of {list(COMMANDS)}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    module_name, help_ = COMMANDS[name]
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as e:
+        if e.name and e.name.startswith(module_name):
+            print(f"command {name!r} is not available in this version ({module_name} is missing)", file=sys.stderr)
+            return 2
+        raise
+    parser = argparse.ArgumentParser(prog=f"python -m masp_lite {name}", description=help_)
+    module.add_arguments(parser)
+    args = parser.parse_args(rest)
+    try:
+        return int(module.run(args) or 0)
+    except ValueError as e:  # bad input: one clear message, no traceback
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+

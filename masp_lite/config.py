@@ -1,0 +1,276 @@
+"""Training settings, one dataclass per concern, and the one ``KEY=VALUE`` parser.
+
+* :class:`NetConfig` — MASP's architecture; stored with the weights and read back from
+  them (:mod:`masp_lite.weights`), so a weights file rebuilds its own networks;
+* :class:`PPOConfig` — MAPPO's optimisation settings (MAGE-X's defaults);
+* :class:`RewardConfig` — the weights of R_CAE (eq. 5) and R_GM's reference (eq. 1);
+* :class:`RunConfig` — the schedule: worlds, updates, stages, evaluation, checkpoints;
+* :class:`TrainConfig` — the four together. Its field names are unique across the
+  four, so ``--set lr=2e-4`` needs no prefix and a manifest stores one flat dict.
+
+:func:`parse_sets` is the parser of every command's ``--set KEY=VALUE``: each value is
+converted by the type of the field it sets (``int``, ``float``, ``bool`` as
+``true``/``false``, ``str``, ``X | None`` with ``none``, tuples as comma lists) — no
+``eval``. The annotations below are real types (no postponed evaluation) for that reason.
+Only settings that the shipped weights use are here; the ones tried and not kept are in
+``docs/research-log.md``.
+"""
+import dataclasses
+import types
+import typing
+from dataclasses import dataclass, field
+
+__all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig", "parse_value", "parse_sets",
+           "field_types"]
+
+
+def _check(obj, name, low=None, high=None, integer=False):
+    v = getattr(obj, name)
+    if integer:
+        if isinstance(v, bool) or not isinstance(v, int) or (low is not None and v < low):
+            raise ValueError(f"{name}: expected an int >= {low}, got {v!r}")
+        return
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or (low is not None and v < low) or \
+            (high is not None and v > high):
+        bounds = f"in [{low}, {high}]" if high is not None else f">= {low}"
+        raise ValueError(f"{name}: expected a number {bounds}, got {v!r}")
+
+
+@dataclass(frozen=True)
+class NetConfig:
+    """MASP's architecture (paper, section "Methodology"); saved with the weights as ``arch``."""
+
+    width: int = 32
+    """Feature width L of every network."""
+    group_size: int = 3
+    """N_g, agents per group in the Group Information Fusion (agent k plus N_g - 1 others)."""
+    gcn_layers: int = 1
+    """GCN layers per group subgraph."""
+    obstacles_seen: int = 2
+    """Nearest obstacles the executor sees."""
+    global_step: int = 3
+    """Environment steps per Goal Matcher decision (3 in the paper)."""
+
+    def __post_init__(self):
+        for name in ("width", "gcn_layers", "obstacles_seen", "global_step"):
+            _check(self, name, 1, integer=True)
+        _check(self, "group_size", 2, integer=True)
+
+
+@dataclass
+class PPOConfig:
+    """MAPPO's settings for both levels (defaults: MAGE-X's)."""
+
+    lr: float = 7e-4
+    """Adam learning rate, all four networks."""
+    ppo_epochs: int = 4
+    """Passes over each rollout (executor)."""
+    gm_ppo_epochs: int = 10
+    """Passes over each rollout for the Goal Matcher (its rollouts are 3x shorter and cheap)."""
+    num_minibatches: int = 2
+    """Minibatches per pass (rows are (step, world) pairs)."""
+    clip: float = 0.2
+    """PPO ratio clip (policy) and value clip."""
+    entropy_coef: float = 0.01
+    """Entropy bonus weight."""
+    value_coef: float = 1.0
+    """Value loss weight."""
+    huber_delta: float = 10.0
+    """Huber loss threshold for the value loss."""
+    max_grad_norm: float = 10.0
+    """Gradient norm clip per network group."""
+    gamma: float = 0.99
+    """Executor discount per environment step."""
+    gae_lambda: float = 0.95
+    """GAE lambda (both levels)."""
+    gm_gamma: float = 0.5
+    """Goal Matcher discount per global step (its reward, eq. 1, is nearly immediate)."""
+
+    def __post_init__(self):
+        for name in ("ppo_epochs", "gm_ppo_epochs", "num_minibatches"):
+            _check(self, name, 1, integer=True)
+        for name in ("gamma", "gae_lambda", "gm_gamma"):
+            _check(self, name, 0.0, 1.0)
+        for name in ("entropy_coef", "value_coef"):
+            _check(self, name, 0.0)
+        for name in ("lr", "clip", "huber_delta", "max_grad_norm"):
+            _check(self, name, 0.0)
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}: expected a positive number, got {getattr(self, name)!r}")
+
+
+@dataclass
+class RewardConfig:
+    """Weights of MASP's rewards (paper, eqs. 1 and 5)."""
+
+    bonus_coef: float = 1.0
+    """alpha in R_CAE: weight of the complete bonus R_b."""
+    distance_coef: float = 1.0
+    """beta in R_CAE: weight of the distance penalty R_d."""
+    collision_coef: float = 1.0
+    """gamma in R_CAE: weight of the collision penalty R_c."""
+    gm_reference_power: float = 1.0
+    """Cost of R_GM's Hungarian reference: ``distance ** power`` per agent-goal pair (1: total
+    distance; 2: total squared distance, shorter longest trips). The paper does not say."""
+
+    def __post_init__(self):
+        for name in ("bonus_coef", "distance_coef", "collision_coef"):
+            _check(self, name, 0.0)
+        _check(self, "gm_reference_power", 0.0)
+        if not self.gm_reference_power > 0:
+            raise ValueError(f"gm_reference_power: expected a positive number, got {self.gm_reference_power!r}")
+
+
+@dataclass
+class RunConfig:
+    """The schedule of one training run."""
+
+    num_envs: int = 64
+    """Worlds simulated side by side; one rollout is one episode of each."""
+    updates: int = 200
+    """PPO updates (rollouts) in the whole run; may grow when a run is resumed."""
+    train_executor: bool = True
+    """Update the executor; ``false`` trains only the Goal Matcher (a cheap fine-tuning stage)."""
+    eval_every: int = 10
+    """Updates between evaluations (0: only at the end)."""
+    eval_episodes: int = 32
+    """Episodes per evaluation (deterministic policies, fixed evaluation seed)."""
+    checkpoint_every: int = 5
+    """Updates between checkpoints of the training state."""
+
+    def __post_init__(self):
+        for name in ("num_envs", "updates", "eval_episodes", "checkpoint_every"):
+            _check(self, name, 1, integer=True)
+        _check(self, "eval_every", 0, integer=True)
+        if not isinstance(self.train_executor, bool):
+            raise ValueError(f"train_executor: expected true or false, got {self.train_executor!r}")
+
+
+_PARTS = {"net": NetConfig, "ppo": PPOConfig, "reward": RewardConfig, "run": RunConfig}
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run is configured by; ``flat()`` is what manifests store."""
+
+    net: NetConfig = field(default_factory=NetConfig)
+    """Architecture (:class:`NetConfig`)."""
+    ppo: PPOConfig = field(default_factory=PPOConfig)
+    """Optimisation (:class:`PPOConfig`)."""
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    """Rewards (:class:`RewardConfig`)."""
+    run: RunConfig = field(default_factory=RunConfig)
+    """Schedule (:class:`RunConfig`)."""
+
+    @classmethod
+    def keys(cls) -> dict[str, str]:
+        """Every setting's name -> the part it belongs to (``"lr" -> "ppo"``)."""
+        return {f.name: part for part, c in _PARTS.items() for f in dataclasses.fields(c)}
+
+    @classmethod
+    def from_flat(cls, values: dict) -> "TrainConfig":
+        """Build from ``{name: value}``; a name that is no setting is one clear error."""
+        keys = cls.keys()
+        unknown = sorted(set(values) - set(keys))
+        if unknown:
+            raise ValueError(f"unknown training setting(s) {unknown}; expected some of {sorted(keys)}")
+        parts = {part: {} for part in _PARTS}
+        for name, value in values.items():
+            parts[keys[name]][name] = value
+        return cls(**{part: c(**parts[part]) for part, c in _PARTS.items()})
+
+    def flat(self) -> dict:
+        """``{name: value}`` of every setting (the inverse of :meth:`from_flat`)."""
+        return {k: v for part in _PARTS for k, v in dataclasses.asdict(getattr(self, part)).items()}
+
+
+def field_types(cls) -> dict[str, object]:
+    """``{field name: type}`` of a dataclass (of every part, for :class:`TrainConfig`)."""
+    if cls is TrainConfig:
+        return {k: v for c in _PARTS.values() for k, v in field_types(c).items()}
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in dataclasses.fields(cls)}
+
+
+def _guess(text: str):
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return parse_value(text, bool) if text.lower() in ("true", "false") else \
+        None if text.lower() in ("none", "null") else text
+
+
+def parse_value(text: str, typ=None):
+    """Convert one ``--set`` value to ``typ``; without a type: int, float, bool, none, else str.
+
+    >>> parse_value("none", int | None) is None, parse_value("3", float), parse_value("1,2", tuple[int, ...])
+    (True, 3.0, (1, 2))
+    """
+    text = text.strip()
+    if typ is None or typ is typing.Any:
+        return _guess(text)
+    args = typing.get_args(typ)
+    if isinstance(typ, types.UnionType) or typing.get_origin(typ) is typing.Union:
+        if type(None) in args and text.lower() in ("none", "null"):
+            return None
+        rest = [a for a in args if a is not type(None)]
+        for a in rest:
+            try:
+                return parse_value(text, a)
+            except ValueError:
+                pass
+        raise ValueError(f"expected {' or '.join(getattr(a, '__name__', str(a)) for a in args)}, got {text!r}")
+    if typing.get_origin(typ) is tuple:
+        items = [t for t in text.strip("()").split(",") if t.strip()]
+        inner = args[0] if args else None
+        return tuple(parse_value(t, inner) for t in items)
+    if typ is bool:
+        if text.lower() not in ("true", "false"):
+            raise ValueError(f"expected true or false, got {text!r}")
+        return text.lower() == "true"
+    if typ is int:
+        try:
+            f = float(text)
+        except ValueError:
+            raise ValueError(f"expected an int, got {text!r}") from None
+        if not f.is_integer():
+            raise ValueError(f"expected an int, got {text!r}")
+        return int(f)
+    if typ is float:
+        try:
+            return float(text)
+        except ValueError:
+            raise ValueError(f"expected a number, got {text!r}") from None
+    if typ is str:
+        return text
+    raise ValueError(f"cannot parse a value of type {typ!r}")
+
+
+def parse_sets(items, targets: dict[str, dict[str, object]]) -> dict[str, dict]:
+    """Split ``KEY=VALUE`` strings among named targets and convert each value by its type.
+
+    ``targets``: ``{target name: {key: type or None}}``, e.g. ``{"scenario override":
+    {"num_agents": int, ...}, "training setting": field_types(TrainConfig)}``; a key goes
+    to the first target that has it. Returns ``{target name: {key: value}}``. A string
+    without ``=``, an unknown key or a value of the wrong type is one clear error that
+    lists what is accepted.
+    """
+    out = {name: {} for name in targets}
+    for item in items or []:
+        key, sep, text = str(item).partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"--set {item!r}: expected KEY=VALUE")
+        for name, keys in targets.items():
+            if key in keys:
+                try:
+                    out[name][key] = parse_value(text, keys[key])
+                except ValueError as e:
+                    raise ValueError(f"--set {key}={text!r}: {e}") from None
+                break
+        else:
+            known = "; ".join(f"{name}s {sorted(keys)}" for name, keys in targets.items())
+            raise ValueError(f"--set {key}: unknown; expected one of the {known}")
+    return out

@@ -1,0 +1,104 @@
+"""``evaluate``: a method on a scenario over several seeds — the record every table is made of.
+
+The record is the ``evaluate --json`` format (``method``, ``scenario``, ``seeds``,
+``episodes_per_seed``, ``sr``/``steps``/``cr``/``decision_ms`` as ``{"mean", "std"}``,
+plus ``overrides`` and ``method_options`` when given): the paper's "mean (standard
+deviation) averaged over 300 testing episodes", pooled over seeds and episodes.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..envs import OVERRIDES, make
+from ..policies import build_policy, get_factory
+from ..policies import method_options as method_options_of
+from .metrics import EpisodeLog, collision_rate, reached_target, steps, success_rate
+from .rollouts import rollout_timings
+
+__all__ = ["evaluate", "MAX_ENVS"]
+
+#: Most episodes run side by side in one batched world during evaluation.
+MAX_ENVS = 100
+
+
+def _stats(x: np.ndarray) -> dict:
+    return {"mean": float(np.mean(x)), "std": float(np.std(x))}
+
+
+def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), overrides=None,
+             method_options=None, checkpoint=None, device: str = "cpu", num_envs: int | None = None,
+             progress: bool = False) -> dict:
+    """Evaluate ``method`` on ``scenario``: ``episodes`` per seed, for every seed.
+
+    Evaluation seed ``s`` seeds the world (spawns, team changes) via :func:`rollout`. If
+    the method's factory has a parameter named ``seed`` it also receives ``seed=s`` (unless
+    ``method_options`` sets it), so a random policy draws differently per seed and a
+    learned method can load the checkpoint trained with seed ``s``. ``checkpoint`` is
+    passed as the option ``checkpoint``. ``num_envs`` caps the batch (default
+    ``min(episodes, MAX_ENVS)``).
+
+    Returns the ``evaluate --json`` record: ``method``, ``scenario``, ``seeds``,
+    ``episodes_per_seed`` and ``sr``/``steps``/``cr``/``decision_ms`` as ``{"mean", "std"}``.
+    Means and standard deviations (population std, ``ddof=0``) are over *all episodes* of
+    all seeds pooled (300 for the default), as the paper's "mean (standard deviation)
+    averaged over 300 testing episodes"; ``decision_ms`` is over all ``act`` calls, in
+    milliseconds per step of one world — amortised over the batch; ``num_envs=1`` measures
+    the latency of deciding for a single team, the paper's per-step time. ``steps`` is ``{"mean": None, "std": None}`` when
+    no episode reaches SR 1 (the paper's backslash).
+    """
+    overrides = dict(overrides or {})
+    options = dict(method_options or {})
+    factory = get_factory(method)
+    named, var_kw = method_options_of(factory)
+    bad = sorted(k for k in overrides if k not in OVERRIDES)
+    if bad:
+        raise ValueError(f"unknown scenario override(s) {bad}; expected one of {sorted(OVERRIDES)}")
+    bad = sorted(k for k in options if k not in named and not var_kw)
+    if bad:
+        raise ValueError(f"method {method!r}: unknown option(s) {bad}; expected one of {sorted(named)}")
+    if checkpoint is not None:
+        if "checkpoint" not in named and not var_kw:
+            raise ValueError(f"method {method!r} takes no checkpoint; expected a learned method")
+        options["checkpoint"] = str(checkpoint)
+    seeds = list(seeds) if isinstance(seeds, (list, tuple, range)) else seeds
+    if not isinstance(seeds, list) or not seeds or not all(isinstance(s, (int, np.integer)) and
+                                                          not isinstance(s, bool) for s in seeds):
+        raise ValueError(f"seeds: expected a non-empty list of ints, got {seeds!r}")
+    seeds = [int(s) for s in seeds]
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes: expected a positive int, got {episodes!r}")
+    B = min(episodes, num_envs or MAX_ENVS)
+    bar = None
+    logs, timings = [], []
+    try:
+        for s in seeds:
+            world = make(scenario, num_envs=B, device=device, seed=s, **overrides)
+            opts = dict(options)
+            if "seed" in named:
+                opts.setdefault("seed", s)
+            policy = build_policy(factory, method, world, opts)
+            if progress and bar is None:  # once the first policy is built: bad options fail first
+                from tqdm import tqdm
+                bar = tqdm(total=len(seeds) * math.ceil(episodes / B) * world.horizon, unit="step",
+                           desc=f"{method} on {getattr(world.scenario, 'name', scenario)}", leave=False)
+            log, dt = rollout_timings(world, policy, episodes, s, progress=bar)
+            logs.append(log)
+            timings.append(dt)
+    finally:
+        if bar is not None:
+            bar.close()
+    log = EpisodeLog.cat(logs)
+    sc_name = scenario if isinstance(scenario, str) else scenario.name
+    steps_ = steps(log).numpy()
+    any_solved = bool(reached_target(log).any())
+    return {
+        "method": method, "scenario": sc_name, "seeds": seeds, "episodes_per_seed": episodes,
+        "sr": _stats(success_rate(log).numpy()),
+        "steps": _stats(steps_) if any_solved else {"mean": None, "std": None},
+        "cr": _stats(collision_rate(log).numpy()),
+        "decision_ms": _stats(np.concatenate(timings) * 1e3),
+        **({"overrides": overrides} if overrides else {}),
+        **({"method_options": options} if options else {}),
+    }

@@ -1,0 +1,106 @@
+"""``masp``: the trained Goal Matcher and executor acting on a particle world.
+
+The networks are :class:`~masp_lite.nets.masp.MASPNets`, loaded from a weights file
+(:mod:`masp_lite.weights`: the shipped one for the scenario unless ``checkpoint`` says
+otherwise). Every ``global_step`` environment steps the Goal Matcher's scores become one
+goal per agent (:mod:`masp_lite.nets.decoding`); every step the executor acts towards it
+with a fresh random group division, as in training.
+"""
+from __future__ import annotations
+
+import torch
+
+from ..algos.assignment import hungarian
+from ..nets.decoding import DECODERS, joint_argmax, sequential_sample
+from ..nets.masp import MASPNets
+from ..weights import load_weights
+
+__all__ = ["MASPPolicy"]
+
+
+class MASPPolicy:
+    """``masp``: trained Goal Matcher + executor on a particle world.
+
+    ``checkpoint``: a weights file (default: the shipped one for the world's scenario, see
+    :mod:`masp_lite.weights`). ``seed`` seeds the random group division. ``global_step``
+    overrides the checkpoint's Goal Matcher period. ``deterministic``: take the most likely
+    goals and action (the paper's "highest matching score"); ``False`` samples both.
+    ``decode``: how the Goal Matcher's scores become goals (:mod:`masp_lite.nets.decoding`):
+    ``"joint"`` (default) gives the alive agents distinct goals — the most likely such
+    assignment, or the sequential draw of training when sampling; ``"independent"`` lets
+    every agent take its own best goal, duplicates allowed (the paper's literal wording);
+    ``"hungarian"`` bypasses the Goal Matcher and takes the Hungarian assignment
+    (:func:`masp_lite.algos.assignment.hungarian`, the goals of ``h-greedy`` and of R_GM's
+    reference) every global step (an agent it leaves without a goal, when a shrinking team
+    has more agents than unreached landmarks, heads for its nearest landmark). That is not MASP: it is a diagnostic that tells the two
+    levels apart (the executor's share of a gap to ``h-greedy`` versus the Goal Matcher's).
+    With a team change (``mpe-20to10``, ...) the success rate counts landmarks ever
+    reached, so the Goal Matcher's choice is restricted to landmarks not reached yet (all
+    of them once every one has been reached); fixed teams choose among all landmarks.
+    """
+
+    def __init__(self, world, checkpoint: str | None = None, seed: int = 0, global_step: int | None = None,
+                 deterministic: bool = True, any_scenario: bool = False, decode: str = "joint"):
+        if getattr(world.scenario, "kind", None) != "particle":
+            raise ValueError("masp: expected a particle world (mpe-* scenario)")
+        self.world = world
+        self.nets, self.meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
+        self.nets.eval()
+        gs = self.nets.arch["global_step"] if global_step is None else global_step
+        if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
+            raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
+        self._setup(gs, deterministic, seed, decode)
+
+    def _setup(self, global_step, deterministic, seed, decode):
+        if decode not in (*DECODERS, "hungarian"):
+            raise ValueError(f"decode: expected one of {[*DECODERS, 'hungarian']}, got {decode!r}")
+        self.global_step, self.deterministic, self.seed = global_step, bool(deterministic), int(seed)
+        self.decode = decode
+        self.scale = self.world.scenario.world_size / 2
+        self.generator = torch.Generator().manual_seed(self.seed)
+        self.goals = None
+
+    @classmethod
+    def from_nets(cls, world, nets: MASPNets, seed: int = 0, deterministic: bool = True,
+                  decode: str = "joint") -> "MASPPolicy":
+        """A policy around networks in memory (used by training's periodic evaluation)."""
+        self = cls.__new__(cls)
+        self.world, self.nets, self.meta = world, nets, {}
+        self._setup(nets.arch["global_step"], deterministic, seed, decode)
+        return self
+
+    def reset(self, obs) -> None:
+        self.goals = None
+
+    def _pick(self, logits):
+        if self.deterministic:
+            return logits.argmax(-1)
+        u = torch.rand(logits.shape, generator=self.generator).to(logits.device)
+        return (logits - torch.log(-torch.log(u.clamp(1e-10, 1.0)))).argmax(-1)
+
+    def _goals(self, logits, alive, mask):
+        if self.decode == "independent":
+            return self._pick(logits)
+        if self.deterministic:
+            return joint_argmax(logits, alive, mask)
+        return sequential_sample(logits.cpu(), alive.cpu(), self.generator, None if mask is None else mask.cpu())[0] \
+            .to(logits.device)
+
+    @torch.inference_mode()
+    def act(self, obs) -> torch.Tensor:
+        due = obs["t"] % self.global_step == 0
+        if self.goals is None or bool(due.any()):
+            mask = None
+            if self.world.scenario.varying:  # landmarks already reached count for SR; pick among the rest
+                mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
+            if self.decode == "hungarian":  # diagnostic: the Hungarian reference instead of the Goal Matcher
+                new = hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], mask)
+                nearest = torch.cdist(obs["agent_pos"], obs["landmark_pos"]).argmin(-1)
+                new = torch.where(new >= 0, new, nearest)  # agents left without a goal: the nearest landmark
+            else:
+                new = self._goals(self.nets.gm_logits(obs, self.scale, mask), obs["alive"], mask)
+            self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
+        B, N = self.goals.shape
+        perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(self.goals.device)
+        actions = self._pick(self.nets.cae_logits(self.nets.cae_inputs(obs, self.goals, perm)))
+        return torch.where(obs["alive"], actions, torch.zeros_like(actions))
