@@ -78,7 +78,8 @@ def test_independent_goals_allows_duplicates():
 @pytest.mark.parametrize("decode", ["joint", "independent", "hungarian"])
 def test_policy_decoders(decode):
     from masp_lite.envs import make
-    from masp_lite.nets.policies import MASPNets, MASPPolicy
+    from masp_lite.nets.masp import MASPNets
+    from masp_lite.policies.masp import MASPPolicy
     torch.manual_seed(0)
     w = make("mpe-5", num_envs=4, seed=0)
     pol = MASPPolicy.from_nets(w, MASPNets(), decode=decode)
@@ -95,7 +96,8 @@ def test_policy_decoders(decode):
 def test_hungarian_diagnostic_on_a_shrinking_team():
     """With more alive agents than unreached landmarks every agent still gets a goal."""
     from masp_lite.envs import make
-    from masp_lite.nets.policies import MASPNets, MASPPolicy
+    from masp_lite.nets.masp import MASPNets
+    from masp_lite.policies.masp import MASPPolicy
     torch.manual_seed(0)
     w = make("mpe-20to10", num_envs=2, seed=0, num_agents=6, team_after=3, world_size=3.0)
     pol = MASPPolicy.from_nets(w, MASPNets(), decode="hungarian")

@@ -8,8 +8,9 @@ import torch
 
 from masp_lite.envs import make
 from masp_lite.envs.drone_model import ARM_LENGTH, HUMMINGBIRD, MAX_THRUST, build_model, rotor_positions
-from masp_lite.planners.drone_control import (MIXER, DroneHungarianGreedy, LeeController, allocation_matrix,
-                                              mixing_matrix, position_loop, quat_to_matrix, thrusts_to_commands)
+from masp_lite.planners.geometric import (MIXER, LeeController, allocation_matrix, mixing_matrix, position_loop,
+                                         quat_to_matrix, thrusts_to_commands)
+from masp_lite.policies.drones import DroneHungarianGreedy
 
 
 def test_mixing_matrix_round_trip_and_layout():
@@ -122,8 +123,8 @@ def test_h_greedy_covers_landmarks(scenario):
 
 
 def test_h_greedy_through_the_registry_and_eval_rollout():
-    from masp_lite import eval as ev
-    from masp_lite.methods import make_policy
+    from masp_lite import evaluation as ev
+    from masp_lite.policies import make_policy
     w = make("drone-5", num_envs=2, seed=1, horizon=200)
     policy = make_policy("h-greedy", w)
     assert isinstance(policy, DroneHungarianGreedy)

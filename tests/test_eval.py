@@ -6,9 +6,10 @@ import pytest
 import torch
 
 from masp_lite.envs import make
-from masp_lite.eval import (CONTACT_KINDS, EpisodeLog, collision_rate, contact_breakdown, evaluate,
-                            format_table, parse_value, rollout, steps, success_rate)
-from masp_lite.methods.reference import RandomPolicy
+from masp_lite.config import parse_value
+from masp_lite.evaluation import (CONTACT_KINDS, EpisodeLog, collision_rate, contact_breakdown, evaluate,
+                                  format_table, rollout, steps, success_rate)
+from masp_lite.policies.reference import RandomPolicy
 
 
 def log_of(covered, reached=None, collisions=None, varying=False, horizon=None):
@@ -143,6 +144,11 @@ def test_paper_layout_has_metric_rows_and_method_columns():
 
 def test_parse_value():
     assert [parse_value(x) for x in ("3", "0.5", "True", "none", "abc")] == [3, 0.5, True, None, "abc"]
+    assert parse_value("none", int | None) is None and parse_value("4", int | None) == 4
+    assert parse_value("2", float) == 2.0 and parse_value("1, 2", tuple[int, ...]) == (1, 2)
+    for text, typ in (("x", int), ("2.5", int), ("yes", bool), ("none", int)):
+        with pytest.raises(ValueError, match="expected"):
+            parse_value(text, typ)
 
 
 def test_evaluate_bad_input():

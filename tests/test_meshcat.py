@@ -7,7 +7,7 @@ import tempfile
 import numpy as np
 import pytest
 
-from masp_lite.planners.drone_control import DroneHungarianGreedy
+from masp_lite.policies.drones import DroneHungarianGreedy
 from masp_lite.viz import meshcat3d
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")

@@ -6,8 +6,9 @@ import torch
 
 from masp_lite.envs import make
 from masp_lite.nets.encoders import CrossEncoder, SelfEncoder, node_update, s_inter
-from masp_lite.nets.fusion import GroupInformationFusion, gcn_layer, group_division, nearest_order, random_permutation
-from masp_lite.nets.policies import MASPNets, MASPPolicy, obstacle_features, pair_features
+from masp_lite.nets.fusion import GroupInformationFusion, gcn_layer, group_division, random_permutation
+from masp_lite.nets.masp import MASPNets, obstacle_features, pair_features
+from masp_lite.policies.masp import MASPPolicy
 
 
 def test_s_inter_is_row_softmax_of_query_key_products():
@@ -185,78 +186,17 @@ def test_networks_run_for_any_team_size(scenario, n):
 def test_masp_nets_reject_bad_architecture():
     with pytest.raises(ValueError, match="group_size"):
         MASPNets(group_size=1)
-    with pytest.raises(ValueError, match="group_order"):
-        MASPNets(group_order="closest")
+    with pytest.raises(ValueError, match="group_order"):  # a setting that was tried and not kept
+        MASPNets(group_order="nearest")
 
 
-def test_nearest_order_groups_the_nearest_others_together():
-    pos = torch.tensor([[[0.0, 0.0], [3.0, 0.0], [1.0, 0.0], [0.0, 2.0], [9.0, 9.0]]])
-    alive = torch.tensor([[True, True, True, True, False]])
-    order = nearest_order(pos, alive)
-    assert order[0, 0].tolist() == [0, 2, 3, 1, 4]            # itself, by distance, the dropped agent last
-    assert order[0, 1].tolist() == [1, 2, 0, 3, 4]
-    assert group_division(order, 3)[0, 0].tolist() == [[0, 2, 3], [0, 1, 4]]
+def test_group_division_rejects_a_bad_order():
     with pytest.raises(ValueError, match="perm"):
         group_division(torch.zeros(1, 5, 4, dtype=torch.long), 3)
 
 
-def test_nearest_group_order_ignores_the_random_order_and_round_trips(tmp_path):
-    from masp_lite.checkpoints import load_weights, save_weights
-    torch.manual_seed(8)
-    nets = MASPNets(group_order="nearest")
-    assert nets.arch["group_order"] == "nearest" and "group_order" not in MASPNets().arch
-    w = make("mpe-20", num_envs=2, seed=0)
-    obs = w.reset()
-    goals = torch.arange(20).repeat(2, 1)
-    a = nets.cae_logits(nets.cae_inputs(obs, goals, random_permutation(2, 20, torch.Generator().manual_seed(1))))
-    b = nets.cae_logits(nets.cae_inputs(obs, goals, random_permutation(2, 20, torch.Generator().manual_seed(2))))
-    torch.testing.assert_close(a, b)
-    path = tmp_path / "w.pt"
-    save_weights(path, nets, "mpe-20")
-    loaded, _ = load_weights(str(path))
-    assert loaded.arch == nets.arch
-    torch.testing.assert_close(loaded.cae_logits(loaded.cae_inputs(obs, goals, random_permutation(2, 20))), a)
-
-
-def test_neighbour_goal_features_by_hand():
-    from masp_lite.nets.policies import neighbour_goal_features
-    pos = torch.tensor([[[0.0, 0.0], [1.0, 0.0]]])
-    goal = torch.tensor([[[0.0, 0.5], [1.0, 0.2]]])
-    f = neighbour_goal_features(pos, goal)                                     # (1, 2, 2, 3)
-    assert f.shape == (1, 2, 2, 3)
-    torch.testing.assert_close(f[0, 0, 0], torch.tensor([0.0, 0.5, 0.5]))    # own goal, 0.5 m to go
-    g = torch.tensor([1.0, 0.2]) / torch.tensor([1.0, 0.2]).norm()           # clipped at SENSE = 1 m
-    torch.testing.assert_close(f[0, 0, 1], torch.cat([g, torch.tensor([0.2])]))
-    far = torch.tensor([-1.0, 0.5]) / 1.25 ** 0.5                            # 1.12 m away: clipped
-    torch.testing.assert_close(f[0, 1, 0], torch.cat([far, torch.tensor([0.5])]))
-
-
-def test_with_neighbour_goals_acts_the_same_and_round_trips(tmp_path):
-    from masp_lite.checkpoints import load_weights, save_weights
-    torch.manual_seed(3)
-    nets = MASPNets(width=8)
-    wide = nets.with_neighbour_goals()
-    assert wide.arch == {**nets.arch, "neighbour_goals": True} and "neighbour_goals" not in nets.arch
-    w = make("mpe-20", num_envs=2, seed=0)
-    obs = w.reset()
-    goals = torch.randperm(20).repeat(2, 1)
-    perm = random_permutation(2, 20, torch.Generator().manual_seed(1))
-    inputs = wide.cae_inputs(obs, goals, perm)
-    assert inputs[0].shape == (2, 20, 20, 9)
-    torch.testing.assert_close(wide.cae_logits(inputs), nets.cae_logits(nets.cae_inputs(obs, goals, perm)))
-    with pytest.raises(ValueError, match="already"):
-        wide.with_neighbour_goals()
-    with pytest.raises(ValueError, match="neighbour_goals"):
-        MASPNets(neighbour_goals="yes")
-    path = tmp_path / "w.pt"
-    save_weights(path, wide, "mpe-20")
-    loaded, _ = load_weights(str(path))
-    assert loaded.arch == wide.arch
-    torch.testing.assert_close(loaded.cae_logits(inputs), wide.cae_logits(inputs))
-
-
 def test_policy_is_seeded_and_respects_dead_agents(tmp_path):
-    from masp_lite.checkpoints import save_weights
+    from masp_lite.weights import save_weights
     torch.manual_seed(6)
     path = tmp_path / "w.pt"
     save_weights(path, MASPNets(), "mpe-20")

@@ -9,7 +9,7 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test, render_test
 from pettingzoo.utils.conversions import parallel_to_aec
 
 from masp_lite.envs import parallel_env
-from masp_lite.envs.pettingzoo import LOCAL_RATIO
+from masp_lite.envs.pettingzoo.particle import LOCAL_RATIO
 
 SCENARIOS = ["mpe-5", "mpe-50", "mpe-50to20", "mpe-20", "mpe-20to10"]
 
@@ -152,13 +152,11 @@ def test_drone_scenarios_are_handed_to_the_drone_module(monkeypatch):
     import types
 
     calls = []
-    fake = types.ModuleType("masp_lite.envs.drone_pettingzoo")
-    fake.parallel_env = lambda scenario, render_mode=None, **kw: calls.append((scenario, render_mode, kw)) or "drone"
-    monkeypatch.setitem(sys.modules, "masp_lite.envs.drone_pettingzoo", fake)
-    import masp_lite.envs
-    monkeypatch.setattr(masp_lite.envs, "drone_pettingzoo", fake, raising=False)
+    fake = types.ModuleType("masp_lite.envs.pettingzoo.drones")
+    fake.DroneParallelEnv = lambda sc, render_mode=None: calls.append((sc.name, sc.horizon, render_mode)) or "drone"
+    monkeypatch.setitem(sys.modules, "masp_lite.envs.pettingzoo.drones", fake)
     assert parallel_env("drone-5", render_mode="rgb_array", horizon=10) == "drone"
-    assert calls == [("drone-5", "rgb_array", {"horizon": 10})]
+    assert calls == [("drone-5", 10, "rgb_array")]
 
 
 def test_rewards_and_positions_match_mpe2_simple_spread():

@@ -4,9 +4,9 @@ import pytest
 import torch
 
 from masp_lite.envs import make
-from masp_lite.methods import make_policy
+from masp_lite.policies import make_policy
 from masp_lite.planners.controllers import arrive_velocity, next_velocities, track_path, velocity_to_action
-from masp_lite.planners.methods import HOrca, HRRTStar, HungarianPlanner, HVoronoi, split_collisions
+from masp_lite.policies.planners import HOrca, HRRTStar, HungarianPlanner, HVoronoi, split_collisions
 from masp_lite.planners.orca import orca_halfplanes, orca_velocities, solve_orca
 from masp_lite.planners.rrt_star import plan_rrt_star, rewire, segment_hits
 from masp_lite.planners.voronoi import plan_voronoi
@@ -26,7 +26,7 @@ def test_controller_picks_the_best_next_velocity():
 
 
 def test_controller_matches_the_reference_controller():
-    ref = pytest.importorskip("masp_lite.methods.reference")
+    from masp_lite.policies import reference as ref
     g = torch.Generator().manual_seed(1)
     vel, want = torch.randn(500, 2, generator=g), torch.randn(500, 2, generator=g) * 2
     assert torch.equal(velocity_to_action(vel, want), ref.velocity_to_action(vel, want))

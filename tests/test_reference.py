@@ -3,9 +3,9 @@ import pytest
 import torch
 
 from masp_lite.envs import PHYSICS, make
-from masp_lite.eval import rollout, steps, success_rate
-from masp_lite.methods import make_policy
-from masp_lite.methods.reference import MAX_SPEED, braking_speed, velocity_to_action
+from masp_lite.evaluation import rollout, steps, success_rate
+from masp_lite.policies import make_policy
+from masp_lite.policies.reference import MAX_SPEED, braking_speed, velocity_to_action
 
 
 def test_velocity_to_action_picks_the_closest_next_velocity():
@@ -92,7 +92,7 @@ def test_h_greedy_power_sets_the_assignment_cost():
 
 
 def test_h_greedy_hands_drone_worlds_to_the_drone_controller():
-    drone_control = pytest.importorskip("masp_lite.planners.drone_control")
+    drone_control = pytest.importorskip("masp_lite.policies.drones")
     w = make("drone-5", num_envs=1, seed=0)
     assert isinstance(make_policy("h-greedy", w), drone_control.DroneHungarianGreedy)
 

@@ -5,13 +5,17 @@ import pytest
 import torch
 
 from masp_lite.__main__ import main
-from masp_lite.algos.mappo import MAPPOConfig
-from masp_lite.algos.train import parse_config, train
-from masp_lite.checkpoints import load_weights, save_weights
-from masp_lite.nets.policies import MASPNets
+from masp_lite.config import TrainConfig
+from masp_lite.training import parse_config, train
+from masp_lite.weights import load_weights, save_weights
+from masp_lite.nets.masp import MASPNets
 
 TINY = dict(num_envs=3, updates=4, checkpoint_every=2, eval_every=2, eval_episodes=2, ppo_epochs=1,
             num_minibatches=2, width=8)
+
+
+def MAPPOConfig(**flat) -> TrainConfig:  # noqa: N802  (the tests' tiny configurations, by flat names)
+    return TrainConfig.from_flat(flat)
 
 
 class Killed(Exception):
@@ -93,15 +97,17 @@ def test_weights_checks(tmp_path):
 
 def test_parse_config_and_cli_errors(tmp_path, capsys):
     cfg, over = parse_config(["updates=7", "lr=0.001", "num_obstacles=2"])
-    assert cfg.updates == 7 and cfg.lr == 0.001 and over == {"num_obstacles": 2}
+    assert cfg.run.updates == 7 and cfg.ppo.lr == 0.001 and over == {"num_obstacles": 2}
     with pytest.raises(ValueError, match="unknown"):
         parse_config(["bogus=1"])
-    with pytest.raises(ValueError, match="expected a int"):
+    with pytest.raises(ValueError, match="expected an int"):
         parse_config(["updates=many"])
-    assert parse_config(["train_executor=False"])[0].train_executor is False
-    assert parse_config(["train_executor=true"])[0].train_executor is True
-    with pytest.raises(ValueError, match="expected a bool"):
+    assert parse_config(["train_executor=False"])[0].run.train_executor is False
+    assert parse_config(["train_executor=true"])[0].run.train_executor is True
+    with pytest.raises(ValueError, match="expected true or false"):
         parse_config(["train_executor=0"])
+    assert parse_config(["team_after=none"])[1] == {"team_after": None}  # the grammar of every command
+    assert parse_config(["team_after=10"])[1] == {"team_after": 10}
     assert main(["train", "--method", "nope", "--scenario", "mpe-5", "--out", str(tmp_path / "x")]) == 2
     assert "unknown method" in capsys.readouterr().err
     assert main(["train", "--scenario", "mpe-5", "--out", str(tmp_path / "y"), "--resume", "--quiet"]) == 2
@@ -109,12 +115,12 @@ def test_parse_config_and_cli_errors(tmp_path, capsys):
 
 
 def test_shipped_weights_load_and_act():
-    from masp_lite.checkpoints import MANIFEST, _manifest
     from masp_lite.envs import make
-    from masp_lite.nets.policies import MASPPolicy
+    from masp_lite.policies.masp import MASPPolicy
+    from masp_lite.weights import MANIFEST, read_manifest
     if not MANIFEST.exists():
         pytest.skip("no shipped weights in this version")
-    for name, entry in _manifest().items():
+    for name, entry in read_manifest().items():
         assert (MANIFEST.parent / entry["file"]).stat().st_size < 1_000_000
         w = make(name, num_envs=2, seed=0)
         pol = MASPPolicy(w)
@@ -124,7 +130,7 @@ def test_shipped_weights_load_and_act():
 
 
 def test_shipped_file_that_differs_from_manifest_is_refused(tmp_path, monkeypatch):
-    import masp_lite.checkpoints as ck
+    import masp_lite.weights as ck
     monkeypatch.setattr(ck, "HERE", tmp_path)
     monkeypatch.setattr(ck, "MANIFEST", tmp_path / "manifest.json")
     save_weights(tmp_path / "mpe-5.pt", MASPNets(width=8), "mpe-5")
@@ -154,12 +160,9 @@ def test_goal_matcher_only_fine_tuning_leaves_the_executor_untouched(tmp_path):
         MAPPOConfig(train_executor="no")
 
 
-def test_ship_run_records_the_earlier_stages(tmp_path, monkeypatch):
-    import masp_lite.checkpoints as ck
-    from masp_lite.algos.train import ship_run
-    monkeypatch.setattr(ck, "HERE", tmp_path / "ck")
-    monkeypatch.setattr(ck, "MANIFEST", tmp_path / "ck" / "manifest.json")
-    (tmp_path / "ck").mkdir()
+def test_ship_run_keeps_every_stage_and_ships_only_where_told(tmp_path):
+    from masp_lite.training import ship_run
+    weights_dir, history = tmp_path / "weights", tmp_path / "history"
     cfg = MAPPOConfig(**{**TINY, "updates": 2})
     first = train("mpe-5", cfg, tmp_path / "first", seed=0, progress=False)
     second = train("mpe-5", cfg, tmp_path / "second", seed=1, progress=False, init=tmp_path / "first" / "weights.pt",
@@ -167,25 +170,27 @@ def test_ship_run_records_the_earlier_stages(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="expected a run manifest"):
         bogus = tmp_path / "bogus.json"
         bogus.write_text("{}")
-        ship_run(tmp_path / "second", earlier=[(bogus, tmp_path / "first" / "progress.csv")])
-    entry = ship_run(tmp_path / "second", note="two stages",
-                     earlier=[(tmp_path / "first" / "manifest.json", tmp_path / "first" / "progress.csv")])
-    assert entry["training"]["seed"] == 1 and entry["training"]["init"].endswith("weights.pt")
-    assert entry["training"]["overrides"] == {"num_obstacles": 7}
-    assert [s["training"]["seed"] for s in entry["stages"]] == [0]
+        ship_run(tmp_path / "second", history, earlier=[(bogus, tmp_path / "first" / "progress.csv")])
+    earlier = [(tmp_path / "first" / "manifest.json", tmp_path / "first" / "progress.csv")]
+    kept = ship_run(tmp_path / "second", history, earlier=earlier, note="a training seed")
+    assert (history / "mpe-5-seed1.pt").exists() and not weights_dir.exists()  # not shipped: kept beside the history
+    entry = ship_run(tmp_path / "second", history, weights_dir, earlier=earlier, note="two stages")
+    assert kept["stages"] == entry["stages"] and entry["note"] == "two stages"
+    last = entry["stages"][-1]["training"]
+    assert last["seed"] == 1 and last["init"].endswith("weights.pt") and last["overrides"] == {"num_obstacles": 7}
+    assert [s["training"]["seed"] for s in entry["stages"]] == [0, 1]
     assert entry["stages"][0]["training"]["wall_clock_s"] == first["wall_clock_s"]
-    assert (tmp_path / "ck" / "mpe-5.stage1.progress.csv").read_text() == (tmp_path / "first" / "progress.csv").read_text()
-    assert json.loads((tmp_path / "ck" / "manifest.json").read_text())["mpe-5"]["note"] == "two stages"
-    nets, _ = load_weights(None, scenario="mpe-5")
+    assert (history / "mpe-5-seed1.stage1.progress.csv").read_text() == (tmp_path / "first" / "progress.csv").read_text()
+    assert json.loads((history / "mpe-5-seed1.manifest.json").read_text()) == entry
+    slim = json.loads((weights_dir / "manifest.json").read_text())["mpe-5"]
+    assert slim["stages"] == 2 and slim["env_steps"] == first["env_steps"] + second["env_steps"]
+    assert slim["history"] == "results/training/mpe-5-seed1.manifest.json"
+    nets, _ = load_weights(weights_dir / "mpe-5.pt", scenario="mpe-5")
     assert nets.arch["width"] == 8 and second["iterations"] == 2
 
 
-def test_init_widens_weights_to_see_the_neighbours_goals(tmp_path):
-    cfg = MAPPOConfig(**{**TINY, "updates": 1})
-    train("mpe-5", cfg, tmp_path / "base", seed=0, progress=False)
-    wide_cfg = MAPPOConfig(**{**TINY, "updates": 1, "neighbour_goals": True})
-    train("mpe-5", wide_cfg, tmp_path / "wide", seed=0, progress=False, init=tmp_path / "base" / "weights.pt")
-    nets, _ = load_weights(str(tmp_path / "wide" / "weights.pt"), any_scenario=True)
-    assert nets.arch.get("neighbour_goals") is True
-    with pytest.raises(ValueError, match="differs from the configured"):   # the other way round is refused
-        train("mpe-5", cfg, tmp_path / "narrow", seed=0, progress=False, init=tmp_path / "wide" / "weights.pt")
+def test_init_refuses_another_architecture(tmp_path):
+    train("mpe-5", MAPPOConfig(**{**TINY, "updates": 1}), tmp_path / "base", seed=0, progress=False)
+    with pytest.raises(ValueError, match="differs from the configured"):
+        train("mpe-5", MAPPOConfig(**{**TINY, "updates": 1, "width": 16}), tmp_path / "wide", seed=0, progress=False,
+              init=tmp_path / "base" / "weights.pt")

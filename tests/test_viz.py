@@ -6,7 +6,7 @@ from PIL import Image
 
 from masp_lite.__main__ import main
 from masp_lite.envs import make
-from masp_lite.methods import make_policy
+from masp_lite.policies import make_policy
 from masp_lite.viz.anim2d import animate, draw_frame, record, save
 
 

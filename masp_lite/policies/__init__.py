@@ -22,6 +22,8 @@ from typing import Protocol
 
 import torch
 
+from ..envs import OVERRIDES
+
 __all__ = ["Policy", "METHODS", "make_policy", "method_names", "get_factory", "method_options", "option_types",
            "build_policy"]
 
@@ -81,15 +83,24 @@ def option_types(factory) -> dict[str, object]:
 
 
 def build_policy(factory, method: str, world, options: dict):
-    """``factory(world, **options)``, with a wrong option reported as one ValueError."""
+    """``factory(world, **options)``, with a wrong option reported as one ValueError.
+
+    A misspelt key may have been meant for the scenario: when the method rejects an
+    option, the message also lists the scenario overrides, so both lists show.
+    """
     named, var_kw = method_options(factory)
+    also = f"; scenario overrides are {sorted(OVERRIDES)}"
     bad = sorted(k for k in options if k not in named and not var_kw)
     if bad:
-        raise ValueError(f"method {method!r}: unknown option(s) {bad}; expected one of {sorted(named)}")
+        raise ValueError(f"method {method!r}: unknown option(s) {bad}; expected one of {sorted(named)}{also}")
     try:
         return factory(world, **options)
     except TypeError as e:
-        raise ValueError(f"method {method!r}: bad option(s) {sorted(options)} ({e})") from None
+        raise ValueError(f"method {method!r}: bad option(s) {sorted(options)} ({e}){also}") from None
+    except ValueError as e:
+        if any(k in str(e) for k in options):
+            raise ValueError(f"{e}{also}") from None
+        raise
 
 
 def make_policy(name: str, world, **options):

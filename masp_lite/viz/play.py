@@ -10,7 +10,8 @@ import importlib
 from pathlib import Path
 
 from ..envs import get_scenario, make
-from ..policies import build_policy, get_factory, method_options
+from ..policies import build_policy, get_factory
+from ..policies import method_options as options_of
 
 __all__ = ["play"]
 
@@ -41,7 +42,7 @@ def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_
 
     factory = get_factory(method)
     world = make(scenario, num_envs=1, seed=seed, **overrides)
-    if "seed" in method_options(factory)[0]:  # as evaluate does: the seed reaches the method too
+    if "seed" in options_of(factory)[0]:  # as evaluate does: the seed reaches the method too
         options.setdefault("seed", seed)
     policy = build_policy(factory, method, world, options)
     return save(animate(record(world, policy, seed=seed)), out)
