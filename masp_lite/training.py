@@ -34,8 +34,6 @@ import io
 import json
 import os
 import platform
-import shlex
-import sys
 import time
 from datetime import datetime, timezone
 from pathlib import Path

@@ -14,7 +14,8 @@ holds what both levels use, each piece a small function:
   the graph networks need the whole team);
 * :func:`ppo_update` — epochs x minibatches of the combined loss, with gradient clipping.
 
-The settings (:class:`masp_lite.config.PPOConfig`) default to MAGE-X's MAPPO settings (lr 7e-4, clip 0.2, entropy 0.01, gamma 0.99,
+The settings (:class:`masp_lite.config.PPOConfig`) default to MAGE-X's MAPPO settings
+(lr 7e-4, clip 0.2, entropy 0.01, gamma 0.99,
 lambda 0.95, Huber delta 10, max grad norm 10, value normalisation). Why hand-written:
 the MARL libraries' PPO (e.g. ``on-policy``) assume flat per-agent observations; ours are
 graphs whose rows must keep a world's agents together.

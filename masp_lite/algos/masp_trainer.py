@@ -60,8 +60,8 @@ class MASPTrainer:
         torch.manual_seed(self.seed)  # network initialisation
         self.nets = MASPNets(cfg.net)
         n = self.nets
-        self.gm_opt = torch.optim.Adam(list(n.gm.parameters()) + list(n.gm_critic.parameters()), lr=cfg.ppo.lr, eps=1e-5)
-        self.cae_opt = torch.optim.Adam(list(n.cae.parameters()) + list(n.cae_critic.parameters()), lr=cfg.ppo.lr, eps=1e-5)
+        self.gm_opt = torch.optim.Adam([*n.gm.parameters(), *n.gm_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5)
+        self.cae_opt = torch.optim.Adam([*n.cae.parameters(), *n.cae_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5)
         self.gm_norm, self.cae_norm = ValueNorm(), ValueNorm()
         self.generator = torch.Generator().manual_seed(self.seed + 10_007)
         self.iterations = 0

@@ -24,7 +24,6 @@ import argparse
 import json
 
 import mujoco
-import numpy as np
 import torch
 
 from ..envs.drone_model import HOVER_COMMAND, SUBSTEPS
@@ -87,5 +86,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"overhead vs raw mj_step: worst {worst:.2f}x (target <= 1.5x)")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"scenario": SCENARIO, "substeps": SUBSTEPS, "threads": args.threads, "results": rows}, f, indent=2)
+            json.dump({"scenario": SCENARIO, "substeps": SUBSTEPS, "threads": args.threads, "results": rows}, f,
+                      indent=2)
     return 0

@@ -119,7 +119,8 @@ def _compare_arrays(got, expected, rtol, atol, where):
     if bad.any():
         idx = tuple(int(i) for i in np.argwhere(bad)[0])
         at = f"{where}[{', '.join(map(str, idx))}]" if idx else where
-        return f"{at}: got {g[idx].item()!r}, expected {e[idx].item()!r} ({int(bad.sum())} of {bad.size} entries differ)"
+        return (f"{at}: got {g[idx].item()!r}, expected {e[idx].item()!r} "
+                f"({int(bad.sum())} of {bad.size} entries differ)")
     return None
 
 

@@ -64,9 +64,8 @@ import mujoco.batch
 import numpy as np
 import torch
 
-from .drone_model import (ARM_LENGTH, COLLISION_RADIUS, HOVER_COMMAND, HUMMINGBIRD, MAX_THRUST,
-                          SUBSTEPS, build_model)
 from .base import BatchedWorld
+from .drone_model import ARM_LENGTH, COLLISION_RADIUS, HOVER_COMMAND, HUMMINGBIRD, MAX_THRUST, SUBSTEPS, build_model
 from .scenarios import Scenario
 
 __all__ = ["DroneWorld", "FLIGHT_HEIGHT", "CEILING", "LANDMARK_HEIGHTS"]
@@ -152,7 +151,8 @@ class DroneWorld(BatchedWorld):
         lms = given["landmark_pos"] if "landmark_pos" in given else self._sample(n, r, LANDMARK_HEIGHTS)
         d = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1) + np.eye(N) * 1e9
         if (d < 2 * COLLISION_RADIUS).any():
-            raise ValueError(f"reset options: drones overlap; expected centres at least {2 * COLLISION_RADIUS:g} m apart")
+            raise ValueError("reset options: drones overlap; expected centres at least "
+                             f"{2 * COLLISION_RADIUS:g} m apart")
         quat = given.get("agent_quat", np.broadcast_to([1.0, 0, 0, 0], (n, N, 4)))
         norm = np.linalg.norm(quat, axis=-1, keepdims=True)
         if (norm < 1e-9).any():

@@ -29,8 +29,6 @@ metrics in :mod:`masp_lite.evaluation` consume.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import torch
 

@@ -32,7 +32,8 @@ class MASPPolicy:
     ``"hungarian"`` bypasses the Goal Matcher and takes the Hungarian assignment
     (:func:`masp_lite.algos.assignment.hungarian`, the goals of ``h-greedy`` and of R_GM's
     reference) every global step (an agent it leaves without a goal, when a shrinking team
-    has more agents than unreached landmarks, heads for its nearest landmark). That is not MASP: it is a diagnostic that tells the two
+    has more agents than unreached landmarks, heads for its nearest landmark). That is not MASP: it
+    is a diagnostic that tells the two
     levels apart (the executor's share of a gap to ``h-greedy`` versus the Goal Matcher's).
     With a team change (``mpe-20to10``, ...) the success rate counts landmarks ever
     reached, so the Goal Matcher's choice is restricted to landmarks not reached yet (all

@@ -28,7 +28,6 @@ import numpy as np
 import torch
 
 from ..algos.assignment import hungarian, hungarian_random_subset
-
 from ..planners.controllers import MAX_SPEED, arrive_velocity, track_path, velocity_to_action
 from ..planners.orca import orca_velocities
 from ..planners.rrt_star import plan_rrt_star, segments_blocked

@@ -43,7 +43,7 @@ import numpy as np
 import torch
 
 from ..drones import DroneWorld
-from ..scenarios import Scenario, get_scenario
+from ..scenarios import Scenario
 from .base import WorldParallelEnv
 
 __all__ = ["DroneParallelEnv", "RESET_OPTIONS"]

@@ -62,7 +62,7 @@ import numpy as np
 import torch
 
 from ..particle import NUM_ACTIONS, ParticleWorld
-from ..scenarios import Scenario, get_scenario
+from ..scenarios import Scenario
 from .base import WorldParallelEnv
 
 __all__ = ["ParticleParallelEnv", "LOCAL_RATIO", "RESET_OPTIONS"]
