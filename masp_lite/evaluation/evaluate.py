@@ -2,7 +2,8 @@
 
 The record is the ``evaluate --json`` format (``method``, ``scenario``, ``seeds``,
 ``episodes_per_seed``, ``sr``/``steps``/``cr``/``decision_ms`` as ``{"mean", "std"}``,
-plus ``overrides`` and ``method_options`` when given): the paper's "mean (standard
+plus ``overrides`` and ``method_options`` when given, and the SHA-256 of the weights
+file when a checkpoint is): the paper's "mean (standard
 deviation) averaged over 300 testing episodes", pooled over seeds and episodes.
 """
 from __future__ import annotations
@@ -14,6 +15,7 @@ import numpy as np
 from ..envs import OVERRIDES, make
 from ..policies import build_policy, get_factory
 from ..policies import method_options as method_options_of
+from ..weights import sha256
 from .metrics import EpisodeLog, collision_rate, reached_target, steps, success_rate
 from .rollouts import rollout_timings
 
@@ -102,4 +104,5 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
         "decision_ms": _stats(np.concatenate(timings) * 1e3),
         **({"overrides": overrides} if overrides else {}),
         **({"method_options": options} if options else {}),
+        **({"checkpoint_sha256": sha256(options["checkpoint"])} if options.get("checkpoint") else {}),
     }
