@@ -47,9 +47,8 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     all seeds pooled (300 for the default), as the paper's "mean (standard deviation)
     averaged over 300 testing episodes"; ``decision_ms`` is over all ``act`` calls, in
     milliseconds per step of one world — amortised over the batch; ``num_envs=1`` measures
-    the latency of deciding for a single team, the paper's per-step time. ``steps`` is ``{"mean":
-    None, "std": None}`` when
-    no episode reaches SR 1 (the paper's backslash).
+    the latency of deciding for a single team, the paper's per-step time. ``steps`` is
+    ``{"mean": None, "std": None}`` when no episode reaches SR 1 (the paper's backslash).
     """
     overrides = dict(overrides or {})
     options = dict(method_options or {})

@@ -19,9 +19,9 @@ towards the optimum as samples grow. Here, per agent, for a given start and goal
 Obstacles are circles (the world's obstacles and the other agents at planning time,
 already inflated by the caller by a safety margin). A circle whose margin holds the start
 or goal counts with its bare radius, and one the agent already touches, or that covers
-its goal, is ignored (:func:`agent_circles`; a neighbour on the landmark moves on its own). Each
-tree considers only its ``max_circles`` circles nearest to the
-start–goal segment.
+its goal, is ignored (:func:`agent_circles`; a neighbour on the landmark moves on its
+own). Each tree considers only its ``max_circles`` circles nearest to the start–goal
+segment.
 
 Why hand-written: no maintained Python RRT* batches many small trees; the loops below run
 over iterations, and every iteration updates all agents' trees with numpy at once, so 50

@@ -19,7 +19,7 @@ __all__ = ["MASPPolicy"]
 
 
 class MASPPolicy:
-    """``masp``: trained Goal Matcher + executor on a particle world.
+    """Trained Goal Matcher + executor on a particle world.
 
     ``checkpoint``: a weights file (default: the shipped one for the world's scenario, see
     :mod:`masp_lite.weights`). ``seed`` seeds the random group division. ``global_step``
@@ -32,9 +32,9 @@ class MASPPolicy:
     ``"hungarian"`` bypasses the Goal Matcher and takes the Hungarian assignment
     (:func:`masp_lite.algos.assignment.hungarian`, the goals of ``h-greedy`` and of R_GM's
     reference) every global step (an agent it leaves without a goal, when a shrinking team
-    has more agents than unreached landmarks, heads for its nearest landmark). That is not MASP: it
-    is a diagnostic that tells the two
-    levels apart (the executor's share of a gap to ``h-greedy`` versus the Goal Matcher's).
+    has more agents than unreached landmarks, heads for its nearest landmark). That is not
+    MASP: it is a diagnostic that tells the two levels apart (the executor's share of a
+    gap to ``h-greedy`` versus the Goal Matcher's).
     With a team change (``mpe-20to10``, ...) the success rate counts landmarks ever
     reached, so the Goal Matcher's choice is restricted to landmarks not reached yet (all
     of them once every one has been reached); fixed teams choose among all landmarks.

@@ -93,10 +93,9 @@ class HungarianGreedy:
     landmarks than agents the least-cost subset is chosen; with fewer, the extra agents
     get no goal). ``power`` is the assignment's cost, ``distance ** power`` (1: total
     distance, the "(H)" baselines' and the default; 2: total squared distance, shorter
-    longest trips, see :func:`~masp_lite.algos.assignment.hungarian`). A world whose team has just
-    shrunk is reassigned at once rather than at
-    its next global step, so the survivors take over the dropped agents' landmarks without
-    delay. The current assignment is kept in ``self.assignment`` (B, N), ``-1`` for
+    longest trips, see :func:`~masp_lite.algos.assignment.hungarian`). A world whose team
+    has just shrunk is reassigned at once rather than at its next global step, so the
+    survivors take over the dropped agents' landmarks without delay. The current assignment is kept in ``self.assignment`` (B, N), ``-1`` for
     none, for playback.
 
     Motion (every step, vectorized over worlds and agents): let ``d`` be the distance to
