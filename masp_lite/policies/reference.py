@@ -95,8 +95,8 @@ class HungarianGreedy:
     distance, the "(H)" baselines' and the default; 2: total squared distance, shorter
     longest trips, see :func:`~masp_lite.algos.assignment.hungarian`). A world whose team
     has just shrunk is reassigned at once rather than at its next global step, so the
-    survivors take over the dropped agents' landmarks without delay. The current assignment is kept in ``self.assignment`` (B, N), ``-1`` for
-    none, for playback.
+    survivors take over the dropped agents' landmarks without delay. The current assignment
+    is kept in ``self.assignment`` (B, N), ``-1`` for none, for playback.
 
     Motion (every step, vectorized over worlds and agents): let ``d`` be the distance to
     the goal left after this step's drift (``pos`` moves by ``vel * dt`` before the new
