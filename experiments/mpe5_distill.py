@@ -2,18 +2,18 @@
 
 Usage (from the repository root)::
 
-    python results/masp/mpe5_distill.py expert              # Goal Matcher + search: the teacher
-    python results/masp/mpe5_distill.py dagger --out DIR    # teach the executor by DAgger
-    python results/masp/mpe5_distill.py probe --labels DIR/labels.pt
+    python -m experiments.mpe5_distill expert              # Goal Matcher + search: the teacher
+    python -m experiments.mpe5_distill dagger --out DIR    # teach the executor by DAgger
+    python -m experiments.mpe5_distill probe --labels DIR/labels.pt
 
-Every MAPPO run on mpe-5 ends at SR 0.965-0.980 (``README.md``), while the search of
-``mpe5_oracle.py`` reaches 0.998. This script asks whether the gap lies in the networks (a
+Every MAPPO run on mpe-5 ends at SR 0.965-0.980 (``docs/research-log.md``), while the search of
+:mod:`experiments.mpe5_oracle` reaches 0.998. This script asks whether the gap lies in the networks (a
 reactive executor, one observation at a time, cannot express what lookahead does) or in
 MAPPO (it does not find such a policy). It is an experiment, not the paper's training, and
 its weights are not shipped.
 
 The teacher takes the shipped Goal Matcher's goals and chooses each agent's action by
-search. ``--teacher copy`` is ``mpe5_oracle.py --per-agent`` with those goals: the first
+search. ``--teacher copy`` is ``experiments.mpe5_oracle --per-agent`` with those goals: the first
 action of agent ``k``'s best copy. That label also depends on which later random actions
 of the copy paid off, so it is noisy. ``--teacher action`` (default, :class:`ActionSearch`)
 tries each of the 5 first actions with its own copies and keeps the velocity controller's
@@ -29,26 +29,22 @@ evaluated like the teacher. The Goal Matcher and both critics stay as shipped. `
 asks whether the teacher's departures from the controller can be predicted from the state
 at all (:func:`probe`).
 
-Written by hand: the teacher needs the world's internal state (see ``mpe5_oracle.py``).
+Written by hand: the teacher needs the world's internal state (see :mod:`experiments.mpe5_oracle`).
 """
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mpe5_oracle import ACTION_DIRECTIONS, SearchOracle, arrival_actions, copy_state  # noqa: E402
-
-from masp_lite import eval as E  # noqa: E402
-from masp_lite.checkpoints import load_weights, save_weights  # noqa: E402
-from masp_lite.envs import make  # noqa: E402
-from masp_lite.nets.policies import MASPPolicy  # noqa: E402
+from experiments.mpe5_oracle import SearchOracle, arrival_actions, copy_state
+from masp_lite.envs import ACTION_DIRECTIONS, make
+from masp_lite.evaluation import EpisodeLog, collision_rate, rollout, steps, success_rate
+from masp_lite.policies.masp import MASPPolicy
+from masp_lite.weights import load_weights, save_weights
 
 KEYS = ("agent_pos", "agent_vel", "landmark_pos", "obstacle_pos", "alive")
 
@@ -123,7 +119,7 @@ class ActionSearch:
 
 
 class Teacher:
-    """Shipped Goal Matcher for the goals, the search for the actions (``eval`` policy interface)."""
+    """Shipped Goal Matcher for the goals, the search for the actions (:mod:`masp_lite.evaluation` policy interface)."""
 
     def __init__(self, world, nets, seed: int, candidates: int, kind: str = "action", **weights):
         self.student = MASPPolicy.from_nets(world, nets, seed=seed)
@@ -147,10 +143,10 @@ def evaluate(world_policy, scenario="mpe-5") -> dict:
     logs = []
     for seed in (0, 1, 2):
         world = make(scenario, num_envs=100, seed=seed)
-        logs.append(E._rollout(world, world_policy(world, seed), 100, seed)[0])
-    log = E.EpisodeLog.cat(logs)
-    return {"Steps": float(E.steps(log).numpy().mean()), "SR": float(E.success_rate(log).numpy().mean()),
-            "CR": float(E.collision_rate(log).numpy().mean())}
+        logs.append(rollout(world, world_policy(world, seed), 100, seed)[0])
+    log = EpisodeLog.cat(logs)
+    return {"Steps": float(steps(log).numpy().mean()), "SR": float(success_rate(log).numpy().mean()),
+            "CR": float(collision_rate(log).numpy().mean())}
 
 
 def collect(nets, seed: int, beta: float, candidates: int, kind: str, weights: dict, episodes: int = 100) -> dict:

@@ -2,7 +2,7 @@
 
 Usage (from the repository root)::
 
-    python results/masp/mpe5_failures.py [--method masp] [--scenario mpe-5] [--set key=value ...]
+    python -m experiments.mpe5_failures [--method masp] [--scenario mpe-5] [--set key=value ...]
 
 Part 1, ``T*``: for every evaluation episode (seeds 0 1 2, 100 episodes each, the spawns
 of ``evaluate``) the fewest steps after which the agents could have every landmark within
@@ -42,9 +42,9 @@ import torch
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
-from masp_lite import eval as E
-from masp_lite.envs import make
-from masp_lite.envs.particle import PHYSICS
+from masp_lite.envs import PHYSICS, make
+from masp_lite.evaluation import rollout, steps, success_rate
+from masp_lite.policies import build_policy, get_factory, method_options
 
 
 def push_front(T: int) -> tuple[np.ndarray, np.ndarray]:
@@ -138,15 +138,15 @@ def main(argv=None):
                    help="method option, e.g. checkpoint=runs/x/weights.pt")
     a = p.parse_args(argv)
     opts = dict(kv.split("=", 1) for kv in a.set)
-    factory = E._factory(a.method)
-    tstars, srs, steps, kinds = [], [], [], Counter()
+    factory = get_factory(a.method)
+    tstars, srs, step_counts, kinds = [], [], [], Counter()
     near_lm, near_obst, missed = [], [], []
     for seed in (0, 1, 2):
         world = make(a.scenario, num_envs=100, seed=seed)
         o = dict(opts)
-        if "seed" in E._method_params(factory)[0]:
+        if "seed" in method_options(factory)[0]:
             o.setdefault("seed", seed)
-        policy = E.build_policy(factory, a.method, world, o)
+        policy = build_policy(factory, a.method, world, o)
         goals, act = [], policy.act
 
         def act_and_log(obs, act=act, policy=policy):
@@ -163,9 +163,9 @@ def main(argv=None):
         def on_step(obs, keep):
             cov.append(obs["covered"].clone())
             con.append(world.info()["agent_collisions"].clone())
-        log, _ = E._rollout(world, policy, 100, seed, on_step=on_step)
-        srs.append(E.success_rate(log).numpy())
-        steps.append(E.steps(log).numpy())
+        log, _ = rollout(world, policy, 100, seed, on_step=on_step)
+        srs.append(success_rate(log).numpy())
+        step_counts.append(steps(log).numpy())
         C, K = torch.stack(cov, 1), torch.stack(con, 1)          # (E, T, L), (E, T, N) after each step
         dl, do = landmark_geometry(world.landmark_pos, world.obstacle_pos)
         near_lm.append(dl.flatten().numpy())
@@ -189,7 +189,7 @@ def main(argv=None):
                     kinds["left, agent unknown"] += 1
                 else:
                     kinds["left, no switch, no contact"] += 1
-    ts, sr, st = np.concatenate(tstars), np.concatenate(srs), np.concatenate(steps)
+    ts, sr, st = np.concatenate(tstars), np.concatenate(srs), np.concatenate(step_counts)
     print(f"{a.method} on {a.scenario}: SR {sr.mean():.3f}, Steps {st.mean():.2f}; "
           f"lower bound T*: mean {ts.mean():.2f}")
     print(" T*  episodes  Steps  SR     episodes with SR < 1")

@@ -2,8 +2,8 @@
 
 Usage (from the repository root)::
 
-    python results/masp/mpe5_oracle.py [--candidates 128] [--noise 0.5]
-                                       [--contact-weight 1] [--coverage-weight 0.5]
+    python -m experiments.mpe5_oracle [--candidates 128] [--noise 0.5]
+                                      [--contact-weight 1] [--coverage-weight 0.5]
 
 This is a reference point, not a method of the paper: a centralized planner that reads the
 full state of every episode and simulates the future with the world's own ``step``. Each
@@ -25,9 +25,9 @@ Ties go to the lower copy index, which has less noise.
 With ``--per-agent`` each agent searches alone. Agent ``k`` gets its own ``K`` copies, in which
 only ``k`` takes random actions and every other agent follows the controller. ``k`` plays the
 first action of its best copy. This asks whether lookahead by each agent, with no joint choice
-of moves, is enough. It is still not decentralized in what it sees: the score is the team's. Episodes and evaluation seeds are those of
-``evaluate`` (seeds 0 1 2, 100 episodes each). Steps, SR and CR are computed by
-:mod:`masp_lite.eval`'s own functions.
+of moves, is enough. It is still not decentralized in what it sees: the score is the team's.
+Episodes and evaluation seeds are those of ``evaluate`` (seeds 0 1 2, 100 episodes each).
+Steps, SR and CR are computed by :mod:`masp_lite.evaluation`'s own functions.
 
 Written by hand because it needs the world's internal state. A generic planning library would
 need the particle world rewritten in its terms.
@@ -40,12 +40,9 @@ import time
 import numpy as np
 import torch
 
-from masp_lite import eval as E
 from masp_lite.algos.assignment import hungarian
-from masp_lite.envs import make
-from masp_lite.envs.particle import ACTION_DIRECTIONS, PHYSICS
-
-STATE = ("obstacle_pos", "agent_pos", "landmark_pos", "agent_vel", "alive", "t", "reached", "_keep")
+from masp_lite.envs import ACTION_DIRECTIONS, PHYSICS, make
+from masp_lite.evaluation import EpisodeLog, collision_rate, rollout, steps, success_rate
 
 
 def arrival_actions(pos: torch.Tensor, vel: torch.Tensor, goal: torch.Tensor, max_speed: float = 2.0) -> torch.Tensor:
@@ -66,13 +63,11 @@ def arrival_actions(pos: torch.Tensor, vel: torch.Tensor, goal: torch.Tensor, ma
 
 def copy_state(sim, world, reps: int) -> None:
     """Make episode ``e`` of ``world`` the start of episodes ``e * reps ... e * reps + reps - 1`` of ``sim``."""
-    for name in STATE:
-        setattr(sim, name, getattr(world, name).repeat_interleave(reps, dim=0).clone())
-    sim._geometry()
+    sim.set_state(world.get_state(), repeat=reps)
 
 
 class SearchOracle:
-    """Policy interface of :mod:`masp_lite.eval` (``reset``, ``act``) around the search above."""
+    """Policy interface of :mod:`masp_lite.evaluation` (``reset``, ``act``) around the search above."""
 
     def __init__(self, world, candidates: int = 128, noise: float = 0.5, contact_weight: float = 1.0,
                  coverage_weight: float = 0.5, seed: int = 0, per_agent: bool = False):
@@ -139,13 +134,13 @@ def main(argv=None):
         world = make(a.scenario, num_envs=100, seed=seed)
         oracle = SearchOracle(world, a.candidates, a.noise, a.contact_weight, a.coverage_weight, seed=seed,
                               per_agent=a.per_agent)
-        logs.append(E._rollout(world, oracle, 100, seed)[0])
-    log = E.EpisodeLog.cat(logs)
-    sr = E.success_rate(log).numpy()
+        logs.append(rollout(world, oracle, 100, seed)[0])
+    log = EpisodeLog.cat(logs)
+    sr = success_rate(log).numpy()
     print(f"search oracle on {a.scenario} ({a.candidates} copies{' per agent' if a.per_agent else ''}, "
           f"noise {a.noise}, contact weight "
-          f"{a.contact_weight}, coverage weight {a.coverage_weight}): Steps {E.steps(log).numpy().mean():.2f}, "
-          f"SR {sr.mean():.4f}, CR {E.collision_rate(log).numpy().mean():.3f}, "
+          f"{a.contact_weight}, coverage weight {a.coverage_weight}): Steps {steps(log).numpy().mean():.2f}, "
+          f"SR {sr.mean():.4f}, CR {collision_rate(log).numpy().mean():.3f}, "
           f"missed landmarks {int(np.rint((1 - sr) * log.covered.shape[-1]).sum())} "
           f"of {sr.size * log.covered.shape[-1]} ({time.perf_counter() - start:.0f} s)")
 

@@ -303,3 +303,26 @@ def test_unseeded_world_leaves_the_global_torch_generator_alone():
     torch.manual_seed(0)
     make("mpe-5")
     assert torch.equal(torch.rand(3), expected)
+
+
+def test_set_state_branches_an_episode_mid_way_and_steps_as_the_original():
+    import pytest
+    w = make("mpe-20to10", num_envs=2, seed=3)
+    w.reset()
+    g = torch.Generator().manual_seed(0)
+    for _ in range(16):  # past the team change
+        w.step(torch.randint(0, 5, (2, 20), generator=g))
+    copies = make("mpe-20to10", num_envs=6, seed=9)
+    obs = copies.set_state(w.get_state(), repeat=3)
+    assert torch.equal(obs["agent_pos"][3], w.agent_pos[1]) and torch.equal(obs["alive"][:3], w.alive[[0, 0, 0]])
+    a = torch.randint(0, 5, (2, 20), generator=g)
+    ref_obs, ref_info = w.step(a)
+    obs, info = copies.step(a.repeat_interleave(3, dim=0))
+    assert torch.equal(obs["agent_pos"][::3], ref_obs["agent_pos"])
+    assert torch.equal(info["collisions"][::3], ref_info["collisions"]) and torch.equal(obs["t"][::3], ref_obs["t"])
+    with pytest.raises(ValueError, match="repeat"):
+        copies.set_state(w.get_state(), repeat=4)
+    with pytest.raises(ValueError, match="keys"):
+        copies.set_state({"agent_pos": w.agent_pos})
+    with pytest.raises(ValueError, match="agent_pos"):
+        copies.set_state({**w.get_state(), "agent_pos": torch.zeros(2, 5, 2)}, repeat=3)

@@ -59,3 +59,28 @@ def test_record_re_evaluates_identically(path, rec, monkeypatch):
                      overrides=rec.get("overrides"), method_options=options)
     for key in ("sr", "steps", "cr"):
         assert again[key] == rec[key], f"{key}: {again[key]} now, {rec[key]} in {path.name}"
+
+
+def _training_manifests():
+    return sorted((ROOT / "results" / "training").glob("*.manifest.json"))
+
+
+@pytest.mark.parametrize("path", _training_manifests(), ids=lambda p: p.name)
+def test_training_history_names_its_weights_and_curves(path):
+    """Each kept run's weights hash to its manifest (shipped ones in the package) and its curves exist."""
+    from masp_lite.weights import HERE, load_weights, read_manifest
+    m = json.loads(path.read_text())
+    shipped = read_manifest().get(m["scenario"], {})
+    weights = HERE / m["file"] if shipped.get("history", "").endswith(path.name) else path.parent / m["file"]
+    assert sha256(weights) == m["sha256"]
+    nets, rec = load_weights(weights, scenario=m["scenario"])
+    assert nets.arch == m["arch"] and rec["scenario"] == m["scenario"]
+    assert m["stages"] and all((path.parent / s["progress"]).exists() for s in m["stages"])
+
+
+def test_every_shipped_file_has_its_history():
+    from masp_lite.weights import read_manifest
+    for name, entry in read_manifest().items():
+        history = json.loads((ROOT / entry["history"]).read_text())
+        assert history["sha256"] == entry["sha256"] and len(history["stages"]) == entry["stages"]
+        assert sum(s["training"]["env_steps"] for s in history["stages"]) == entry["env_steps"]

@@ -1,32 +1,22 @@
-"""The analysis scripts behind results/masp/README.md agree with the world's dynamics; its weight files check out."""
-import importlib.util
-from pathlib import Path
-
+"""The research scripts in experiments/ agree with the world's dynamics (findings: docs/research-log.md)."""
 import numpy as np
 import pytest
 import torch
 
+from experiments import mpe5_distill, mpe5_failures, mpe5_oracle
+from masp_lite.algos.assignment import hungarian
 from masp_lite.envs import make
-
-RESULTS = Path(__file__).resolve().parents[1] / "results" / "masp"
-
-
-def _load(name):
-    """Import ``results/masp/NAME.py`` (scripts, not a package) as a module."""
-    spec = importlib.util.spec_from_file_location(name, RESULTS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from masp_lite.weights import load_weights
 
 
 @pytest.fixture(scope="module")
 def failures():
-    return _load("mpe5_failures")
+    return mpe5_failures
 
 
 @pytest.fixture(scope="module")
 def oracle():
-    return _load("mpe5_oracle")
+    return mpe5_oracle
 
 
 def _push_x(steps):
@@ -112,7 +102,6 @@ def test_search_oracle_with_one_noise_free_copy_is_the_arrival_controller(oracle
     w = make("mpe-5", num_envs=3, seed=1)
     obs = w.reset(seed=1)
     o = oracle.SearchOracle(w, candidates=1, noise=0.0)
-    from masp_lite.algos.assignment import hungarian
     goals = hungarian(w.agent_pos, w.landmark_pos, w.alive, None, 2.0)
     goal_pos = torch.gather(w.landmark_pos, 1, goals.unsqueeze(-1).expand(3, 5, 2))
     controller = oracle.arrival_actions(w.agent_pos, w.agent_vel, goal_pos)
@@ -134,7 +123,6 @@ def test_per_agent_search_only_perturbs_the_searching_agent(oracle):
     o.sim.step = spy
     o.act(obs)
     moves = captured["first"].view(2, 5, 8, 5)                # (world, searching agent, copy, agent)
-    from masp_lite.algos.assignment import hungarian
     goals = hungarian(w.agent_pos, w.landmark_pos, w.alive, None, 2.0)
     goal_pos = torch.gather(w.landmark_pos, 1, goals.unsqueeze(-1).expand(2, 5, 2))
     controller = oracle.arrival_actions(w.agent_pos, w.agent_vel, goal_pos)
@@ -146,7 +134,7 @@ def test_per_agent_search_only_perturbs_the_searching_agent(oracle):
 
 @pytest.fixture(scope="module")
 def distill():
-    return _load("mpe5_distill")
+    return mpe5_distill
 
 
 def test_action_search_keeps_the_controller_unless_another_action_wins_by_the_margin(oracle, distill):
@@ -177,7 +165,6 @@ def test_action_search_keeps_the_controller_unless_another_action_wins_by_the_ma
 
 
 def test_collect_labels_every_visited_state_and_fit_learns_the_labels(distill):
-    from masp_lite.checkpoints import load_weights
     nets, _ = load_weights(None, scenario=make("mpe-5", num_envs=1).scenario)
     data = distill.collect(nets, seed=1000, beta=1.0, candidates=5, kind="action", weights={}, episodes=4)
     assert data["action"].shape == (4 * 18, 5) and data["goals"].shape == (4 * 18, 5)
@@ -187,32 +174,3 @@ def test_collect_labels_every_visited_state_and_fit_learns_the_labels(distill):
     before = distill.fit(nets, data, epochs=1, lr=0.0, seed=0)
     after = distill.fit(nets, data, epochs=40, lr=3e-3, seed=0)
     assert after < 0.5 * before
-
-
-@pytest.mark.parametrize("folder", ["stage1", "seeds", "velocity_first"])
-def test_committed_training_seed_weights_match_their_manifests_and_load(folder):
-    import hashlib
-    import json
-
-    from masp_lite.checkpoints import load_weights
-    files = sorted((RESULTS / folder).glob("*.pt"))
-    assert files
-    for pt in files:
-        manifest = json.loads(pt.with_suffix(".manifest.json").read_text())
-        assert manifest["weights_sha256"] == hashlib.sha256(pt.read_bytes()).hexdigest(), pt.name
-        nets, rec = load_weights(str(pt), scenario=manifest["scenario"])
-        assert nets.arch == manifest["arch"] and rec["scenario"] == manifest["scenario"]
-
-
-def test_velocity_first_record_is_what_evaluate_gives():
-    """The headline row of "The original MPE's update order" re-evaluates to the committed record."""
-    import json
-
-    from masp_lite.eval import evaluate
-    rec = json.loads((RESULTS / "velocity_first" / "masp_mpe-5_velocity_first.json").read_text())
-    assert rec["overrides"] == {"integration": "velocity_first"}
-    again = evaluate("masp", "mpe-5", episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
-                     overrides=rec["overrides"], method_options=rec["method_options"])
-    for key in ("sr", "steps", "cr"):
-        assert again[key]["mean"] == pytest.approx(rec[key]["mean"], abs=1e-9), key
-    assert rec["sr"]["mean"] >= 0.99

@@ -45,6 +45,7 @@ PHYSICS = dict(dt=0.1, damping=0.25, mass=1.0, contact_force=1e2, contact_margin
 ACTION_DIRECTIONS = ((0.0, 0.0), (-1.0, 0.0), (1.0, 0.0), (0.0, -1.0), (0.0, 1.0))
 NUM_ACTIONS = len(ACTION_DIRECTIONS)
 
+_STATE = ("obstacle_pos", "agent_pos", "landmark_pos", "agent_vel", "alive", "t", "reached", "keep")
 _SPAWN_GAP = 0.01  # bodies start at least this far apart, so nothing is in contact at t = 0
 
 
@@ -251,6 +252,35 @@ class ParticleWorld(BatchedWorld):
         self.collisions = (aa_hit & self._upper).sum((1, 2)) + ao_hit.sum((1, 2))
         al_dist = torch.cdist(pos, self.landmark_pos)                             # (B, N, L)
         self.covered = ((al_dist <= sc.reach_distance) & alive.unsqueeze(2)).any(dim=1)
+
+    # ----------------------------------------------------------------- state
+    def get_state(self) -> dict[str, torch.Tensor]:
+        """Every episode's full state (copies): positions, velocities, team, time, reached.
+
+        Unlike ``reset(options=...)``, which starts an episode and refuses overlapping
+        bodies, :meth:`set_state` takes such a state back mid-episode (contacts included),
+        e.g. to branch copies of an episode for a search."""
+        return {k: getattr(self, "_keep" if k == "keep" else k).clone() for k in _STATE}
+
+    def set_state(self, state: dict, repeat: int = 1) -> dict[str, torch.Tensor]:
+        """Continue from ``state`` (a :meth:`get_state` of a world of this scenario); returns the observation.
+
+        ``repeat``: each of the state's ``num_envs / repeat`` episodes becomes the state of
+        ``repeat`` consecutive episodes here (``repeat = 1``: the same episodes)."""
+        if set(state) != set(_STATE):
+            raise ValueError(f"set_state: expected the keys {list(_STATE)}, got {sorted(state)}")
+        if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1 or self.num_envs % repeat:
+            raise ValueError(f"set_state: expected repeat to divide num_envs = {self.num_envs}, got {repeat!r}")
+        for k in _STATE:
+            v = state[k]
+            want = (self.num_envs // repeat, *getattr(self, "_keep" if k == "keep" else k).shape[1:])
+            if not torch.is_tensor(v) or tuple(v.shape) != want:
+                raise ValueError(f"set_state: {k!r} expected a tensor of shape {want}, got "
+                                 f"{tuple(v.shape) if torch.is_tensor(v) else type(v).__name__}")
+            cur = getattr(self, "_keep" if k == "keep" else k)
+            setattr(self, "_keep" if k == "keep" else k, v.repeat_interleave(repeat, dim=0).to(cur.device, cur.dtype))
+        self._geometry()
+        return self.observe()
 
     # ------------------------------------------------------------- RNG state
     def get_rng_state(self) -> torch.Tensor:
