@@ -111,3 +111,27 @@ def test_squared_cost_shortens_the_longest_trip():
     for bad in (0, -1.0, float("inf"), True, "2"):
         with pytest.raises(ValueError, match="power"):
             hungarian(a, g, power=bad)
+
+
+def test_bottleneck_minimises_the_longest_trip_then_the_total():
+    import itertools
+
+    from masp_lite.algos.assignment import bottleneck
+    g = torch.Generator().manual_seed(0)
+    for n, m in ((5, 5), (4, 6), (6, 4)):
+        a, goals = torch.rand(20, n, 2, generator=g), torch.rand(20, m, 2, generator=g)
+        got = bottleneck(a, goals)
+        for b in range(20):
+            d = torch.cdist(a[b], goals[b]).double()
+            k = min(n, m)
+            best = None  # brute force over every assignment of k agents to k goals
+            for rows in itertools.combinations(range(n), k):
+                for cols in itertools.permutations(range(m), k):
+                    trips = d[list(rows), list(cols)]
+                    key = (float(trips.max()), float(trips.sum()))
+                    best = key if best is None or key < best else best
+            mine = [(i, int(j)) for i, j in enumerate(got[b]) if j >= 0]
+            assert len(mine) == k and len({j for _, j in mine}) == k
+            trips = torch.stack([d[i, j] for i, j in mine])
+            assert abs(float(trips.max()) - best[0]) < 1e-9 and abs(float(trips.sum()) - best[1]) < 1e-9
+    assert (bottleneck(a, goals, agent_mask=torch.zeros(20, 6, dtype=torch.bool)) == -1).all()

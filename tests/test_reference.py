@@ -109,3 +109,22 @@ def test_h_greedy_reassigns_as_soon_as_the_team_shrinks():
     p.act(obs)  # t = 4 is no global step, but the team has just changed
     assert torch.equal(p.assignment, p.assign(obs))
     assert (p.assignment[~obs["alive"]] == -1).all()
+
+
+def test_h_capt_and_h_bottleneck_are_h_greedy_with_another_assignment():
+    from masp_lite.algos.assignment import bottleneck
+    from masp_lite.evaluation import rollout
+    w = make("mpe-20", num_envs=4, seed=5)
+    obs = w.reset(seed=5)
+    capt, squared = make_policy("h-capt", w), make_policy("h-greedy", w, power=2)
+    capt.reset(obs), squared.reset(obs)
+    assert torch.equal(capt.act(obs), squared.act(obs))
+    mm = make_policy("h-bottleneck", w)
+    mm.reset(obs)
+    mm.act(obs)
+    assert torch.equal(mm.assignment, bottleneck(obs["agent_pos"], obs["landmark_pos"], obs["alive"]))
+    logs = {m: rollout(w, make_policy(m, w), 8, seed=1)[0] for m in ("h-greedy", "h-bottleneck")}
+    from masp_lite.evaluation import steps
+    assert steps(logs["h-bottleneck"]).mean() < steps(logs["h-greedy"]).mean()  # the longest trip sets Steps
+    with pytest.raises(ValueError, match="cost"):
+        make_policy("h-greedy", w, cost="max")

@@ -10,7 +10,7 @@ Only ``act`` is timed as *decision time* by :mod:`masp_lite.evaluation`. A facto
 called as ``factory(world, **options)``; factories are named by ``"module:attribute"``
 strings and imported on first use, so a method's dependencies (MuJoCo, scipy's spatial
 code, the networks) load only when it is asked for. The methods live in this package:
-:mod:`.reference` (``random``, ``h-greedy``), :mod:`.planners` (the "(H)" planners),
+:mod:`.reference` (``random``, ``h-greedy``, ``h-capt``, ``h-bottleneck``), :mod:`.planners` (the "(H)" planners),
 :mod:`.drones` (the drone version of ``h-greedy``) and :mod:`.masp` (``masp``).
 """
 from __future__ import annotations
@@ -41,6 +41,8 @@ class Policy(Protocol):
 METHODS: dict[str, str] = {
     "random": "masp_lite.policies.reference:RandomPolicy",
     "h-greedy": "masp_lite.policies.reference:HungarianGreedy",
+    "h-capt": "masp_lite.policies.reference:capt",
+    "h-bottleneck": "masp_lite.policies.reference:min_max",
     "h-orca": "masp_lite.policies.planners:HOrca",
     "h-rrtstar": "masp_lite.policies.planners:HRRTStar",
     "h-voronoi": "masp_lite.policies.planners:HVoronoi",

@@ -22,11 +22,15 @@ import math
 
 import torch
 
-from ..algos.assignment import check_power, hungarian
+from ..algos.assignment import bottleneck, check_power, hungarian
 from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
 from ..planners.controllers import velocity_to_action  # the controller every planner shares
 
-__all__ = ["RandomPolicy", "HungarianGreedy", "velocity_to_action", "braking_speed", "MAX_SPEED"]
+__all__ = ["RandomPolicy", "HungarianGreedy", "capt", "min_max", "COSTS", "velocity_to_action", "braking_speed",
+           "MAX_SPEED"]
+
+COSTS = ("sum", "bottleneck")
+"""What h-greedy's assignment minimises: the total of ``distance ** power``, or the longest trip."""
 
 #: Terminal speed under a constant action: ``v = (1 - damping) v + s dt / m`` -> 2 m/s in MPE.
 MAX_SPEED = PHYSICS["sensitivity"] * PHYSICS["dt"] / PHYSICS["mass"] / PHYSICS["damping"]
@@ -93,7 +97,9 @@ class HungarianGreedy:
     landmarks than agents the least-cost subset is chosen; with fewer, the extra agents
     get no goal). ``power`` is the assignment's cost, ``distance ** power`` (1: total
     distance, the "(H)" baselines' and the default; 2: total squared distance, shorter
-    longest trips, see :func:`~masp_lite.algos.assignment.hungarian`). A world whose team
+    longest trips, see :func:`~masp_lite.algos.assignment.hungarian`). ``cost="bottleneck"``
+    takes the min–max assignment instead (:func:`~masp_lite.algos.assignment.bottleneck`:
+    the longest trip as short as possible, then the least total). A world whose team
     has just shrunk is reassigned at once rather than at its next global step, so the
     survivors take over the dropped agents' landmarks without delay. The current assignment
     is kept in ``self.assignment`` (B, N), ``-1`` for none, for playback.
@@ -120,14 +126,17 @@ class HungarianGreedy:
             return DroneHungarianGreedy(world, *args, **options)
         return super().__new__(cls)
 
-    def __init__(self, world, global_step: int = 3, power: float = 1.0, **options):
+    def __init__(self, world, global_step: int = 3, power: float = 1.0, cost: str = "sum", **options):
         if options:
-            raise ValueError(f"h-greedy: unknown option(s) {sorted(options)}; expected global_step, power")
+            raise ValueError(f"h-greedy: unknown option(s) {sorted(options)}; expected global_step, power, cost")
         if isinstance(global_step, bool) or not isinstance(global_step, int) or global_step < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
+        if cost not in COSTS:
+            raise ValueError(f"cost: expected one of {list(COSTS)}, got {cost!r}")
         self.world = world
         self.global_step = global_step
         self.power = check_power(power)
+        self.cost = cost
         self.varying = bool(world.scenario.varying)
         self.assignment = None
         self._alive = None
@@ -137,8 +146,10 @@ class HungarianGreedy:
         self._alive = None
 
     def assign(self, obs) -> torch.Tensor:
-        """Hungarian assignment for the current observation (see the class docstring)."""
+        """The assignment for the current observation (see the class docstring)."""
         goal_mask = ~obs["reached"] if self.varying else None
+        if self.cost == "bottleneck":
+            return bottleneck(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask)
         return hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask, self.power)
 
     def act(self, obs) -> torch.Tensor:
@@ -164,3 +175,20 @@ class HungarianGreedy:
         desired = to_goal / dist.clamp(min=1e-9) * speed
         desired = torch.where(has_goal.unsqueeze(-1), desired, torch.zeros_like(desired))
         return velocity_to_action(vel, desired)
+
+
+def capt(world, global_step: int = 3) -> HungarianGreedy:
+    """``h-capt``: h-greedy with the Hungarian assignment on squared distances.
+
+    Turpin et al.'s goal assignment for interchangeable robots (CAPT, cited by the paper),
+    which minimises the sum of squared trips and so shortens the longest one."""
+    return HungarianGreedy(world, global_step=global_step, power=2.0)
+
+
+def min_max(world, global_step: int = 3) -> HungarianGreedy:
+    """``h-bottleneck``: h-greedy with the min–max assignment, re-solved every global step.
+
+    Not in the paper: Steps waits for the last landmark, so the assignment whose longest
+    trip is shortest (:func:`~masp_lite.algos.assignment.bottleneck`) bounds what any
+    goal assignment followed by straight lines can do."""
+    return HungarianGreedy(world, global_step=global_step, cost="bottleneck")
