@@ -326,3 +326,17 @@ def test_set_state_branches_an_episode_mid_way_and_steps_as_the_original():
         copies.set_state({"agent_pos": w.agent_pos})
     with pytest.raises(ValueError, match="agent_pos"):
         copies.set_state({**w.get_state(), "agent_pos": torch.zeros(2, 5, 2)}, repeat=3)
+
+
+def test_central_landmark_spawn_keeps_landmarks_in_the_central_square_and_agents_everywhere():
+    import pytest
+    L = make("mpe-20").scenario.world_size
+    w = make("mpe-20", num_envs=300, seed=0, landmark_spawn="central")
+    assert float(w.landmark_pos.abs().max()) <= 0.8 * L / 2
+    assert float(w.agent_pos.abs().max()) > 0.9 * L / 2          # agents still use the whole map
+    whole = make("mpe-20", num_envs=300, seed=0)
+    assert float(whole.landmark_pos.abs().max()) > 0.9 * L / 2
+    with pytest.raises(ValueError, match="landmark_spawn"):
+        make("mpe-20", landmark_spawn="middle")
+    with pytest.raises(ValueError, match="landmark_spawn"):
+        make("drone-5", landmark_spawn="central")

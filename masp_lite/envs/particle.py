@@ -46,7 +46,9 @@ ACTION_DIRECTIONS = ((0.0, 0.0), (-1.0, 0.0), (1.0, 0.0), (0.0, -1.0), (0.0, 1.0
 NUM_ACTIONS = len(ACTION_DIRECTIONS)
 
 _STATE = ("obstacle_pos", "agent_pos", "landmark_pos", "agent_vel", "alive", "t", "reached", "keep")
-_SPAWN_GAP = 0.01  # bodies start at least this far apart, so nothing is in contact at t = 0
+_SPAWN_GAP = 0.01
+CENTRAL = 0.8
+"""Landmarks of ``landmark_spawn="central"`` lie in the central ``CENTRAL``× square (MAGE-X's navigation)."""  # bodies start at least this far apart, so nothing is in contact at t = 0
 
 
 def contact_force(delta: torch.Tensor, dist: torch.Tensor, dist_min: float,
@@ -139,7 +141,9 @@ class ParticleWorld(BatchedWorld):
         """Rejection-sample non-overlapping bodies, vectorized over episodes.
 
         Obstacles first, then agents (clear of obstacles and each other), then landmarks
-        (clear of obstacles and each other; a landmark may lie under an agent).
+        (clear of obstacles and each other; a landmark may lie under an agent). Obstacles
+        and agents are uniform over the map; landmarks too, or over the central 0.8× square
+        (``Scenario.landmark_spawn``). The paper does not say where its obstacles go.
         """
         sc = self.scenario
         ra, rl, ro = sc.agent_radius, sc.landmark_radius, sc.obstacle_radius
@@ -148,11 +152,14 @@ class ParticleWorld(BatchedWorld):
         agents = given.get("agent_pos") if "agent_pos" in given else \
             self._sample(n, self.num_agents, ra, [(obst, ro)])
         lms = given.get("landmark_pos") if "landmark_pos" in given else \
-            self._sample(n, self.num_agents, rl, [(obst, ro)])
+            self._sample(n, self.num_agents, rl, [(obst, ro)], central=sc.landmark_spawn == "central")
         return obst, agents, lms
 
-    def _sample(self, n, count, radius, others):
-        half = self.scenario.world_size / 2 - radius
+    def _sample(self, n, count, radius, others, central=False):
+        """Uniform over the map, the body inside it; ``central``: MAGE-X's landmark square,
+        ``0.8 * uniform(-L/2, L/2)`` on each axis."""
+        L = self.scenario.world_size
+        half = CENTRAL * L / 2 if central else L / 2 - radius
         out = torch.zeros(n, count, 2, dtype=torch.float64)
 
         def draw(m):

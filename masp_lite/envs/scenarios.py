@@ -63,6 +63,10 @@ class Scenario:
     MPE's order (velocity, then position with the new velocity), in which a push already moves
     the agent in the step it is given. Only for experiments on how the order changes the task;
     every shipped result uses ``"mpe2"``."""
+    landmark_spawn: str = "whole"
+    """Where landmarks spawn: ``"whole"`` map (uniform, as agents and obstacles) or
+    ``"central"``, the central 0.8× square (MAGE-X's navigation scenario:
+    ``0.8 * uniform(-L/2, L/2)`` per axis)."""
 
     @property
     def varying(self) -> bool:
@@ -108,12 +112,14 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in [
 
 #: Update orders of the particle world (:attr:`Scenario.integration`).
 INTEGRATIONS = ("mpe2", "velocity_first")
+#: Landmark spawn regions of the particle world (:attr:`Scenario.landmark_spawn`).
+LANDMARK_SPAWNS = ("whole", "central")
 
 #: Names accepted as overrides, with the type each value is converted to.
 OVERRIDES: dict[str, type] = {
     "num_agents": int, "num_obstacles": int, "world_size": float, "horizon": int,
     "team_after": int, "change_step": int, "agent_radius": float,
-    "landmark_radius": float, "obstacle_radius": float, "integration": str,
+    "landmark_radius": float, "obstacle_radius": float, "integration": str, "landmark_spawn": str,
 }
 
 
@@ -169,6 +175,8 @@ def _validate(sc: Scenario) -> None:
     need(sc.horizon >= 1, f"horizon >= 1, got {sc.horizon}")
     need(sc.integration in INTEGRATIONS, f"integration in {INTEGRATIONS}, got {sc.integration!r}")
     need(sc.kind == "particle" or sc.integration == "mpe2", "integration 'mpe2' for drone scenarios")
+    need(sc.landmark_spawn in LANDMARK_SPAWNS, f"landmark_spawn in {LANDMARK_SPAWNS}, got {sc.landmark_spawn!r}")
+    need(sc.kind == "particle" or sc.landmark_spawn == "whole", "landmark_spawn 'whole' for drone scenarios")
     for r in ("agent_radius", "landmark_radius", "obstacle_radius"):
         need(getattr(sc, r) > 0, f"{r} > 0, got {getattr(sc, r)}")
     if sc.team_after is not None:
