@@ -10,7 +10,7 @@ full state of every episode and simulates the future with the world's own ``step
 step it does the following:
 
 1. It assigns goals by the Hungarian algorithm on squared distances, the same reference as R_GM with
-   ``gm_reference_power=2`` (:func:`masp_lite.algos.assignment.hungarian`).
+   ``gm_reference=squared`` (:func:`masp_lite.algos.assignment.hungarian`).
 2. It copies the episode ``K`` times (:func:`copy_state`). Each copy then runs to the end
    of the episode under :func:`arrival_actions`, a simple velocity controller. In copy
    ``i`` each agent's action is replaced by a random one with probability

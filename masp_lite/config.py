@@ -4,6 +4,8 @@
   them (:mod:`masp_lite.weights`), so a weights file rebuilds its own networks;
 * :class:`PPOConfig` — MAPPO's optimisation settings (MAGE-X's defaults);
 * :class:`RewardConfig` — the weights of R_CAE (eq. 5) and R_GM's reference (eq. 1);
+  the shipped weights until 2026-12 were trained with ``gm_reference="squared"`` (then
+  spelt ``gm_reference_power=2``);
 * :class:`RunConfig` — the schedule: worlds, updates, stages, evaluation, checkpoints;
 * :class:`TrainConfig` — the four together. Its field names are unique across the
   four, so ``--set lr=2e-4`` needs no prefix and a manifest stores one flat dict.
@@ -22,6 +24,10 @@ from dataclasses import dataclass, field
 
 __all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig", "parse_value", "parse_sets",
            "field_types"]
+
+
+GM_REFERENCES = ("distance", "squared", "bottleneck")
+"""The settings of :attr:`RewardConfig.gm_reference`."""
 
 
 def _check(obj, name, low=None, high=None, integer=False):
@@ -109,16 +115,17 @@ class RewardConfig:
     """beta in R_CAE: weight of the distance penalty R_d."""
     collision_coef: float = 1.0
     """gamma in R_CAE: weight of the collision penalty R_c."""
-    gm_reference_power: float = 1.0
-    """Cost of R_GM's Hungarian reference: ``distance ** power`` per agent-goal pair (1: total
-    distance; 2: total squared distance, shorter longest trips). The paper does not say."""
+    gm_reference: str = "distance"
+    """R_GM's reference assignment and the cost ``D`` it is scored by (eq. 1): ``distance``,
+    the Hungarian assignment on distances (the paper's reading); ``squared``, on squared
+    distances (shorter longest trips); ``bottleneck``, the min-max assignment, ``D`` the
+    longest trip (what Steps follows). The paper does not give the reference's costs."""
 
     def __post_init__(self):
         for name in ("bonus_coef", "distance_coef", "collision_coef"):
             _check(self, name, 0.0)
-        _check(self, "gm_reference_power", 0.0)
-        if not self.gm_reference_power > 0:
-            raise ValueError(f"gm_reference_power: expected a positive number, got {self.gm_reference_power!r}")
+        if self.gm_reference not in GM_REFERENCES:
+            raise ValueError(f"gm_reference: expected one of {list(GM_REFERENCES)}, got {self.gm_reference!r}")
 
 
 @dataclass

@@ -126,5 +126,6 @@ def test_script_reads_no_private_attribute_of_library_objects(path):
 
 
 def test_the_stricter_check_catches_a_world_internal():
-    assert sorted(foreign_private_attributes("sim._geometry()\nx = world._keep")) == ["1: sim._geometry", "2: world._keep"]
+    found = sorted(foreign_private_attributes("sim._geometry()\nx = world._keep"))
+    assert found == ["1: sim._geometry", "2: world._keep"]
     assert foreign_private_attributes("self._cache = {}") == []

@@ -85,7 +85,8 @@ class MASPTrainer:
                 v = n.gm_value(obs, self.scale, self.horizon)
                 goal_mask = ~obs["reached"] if w.scenario.varying else None
                 r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask,
-                                        power=cfg.reward.gm_reference_power)
+                                        power=2.0 if cfg.reward.gm_reference == "squared" else 1.0,
+                                        cost="bottleneck" if cfg.reward.gm_reference == "bottleneck" else "sum")
                 gm.add(**snap, actions=goals, rank=rank, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
             perm = torch.rand(B, N, generator=g).argsort(-1)
             inputs = n.cae_inputs(obs, goals, perm)

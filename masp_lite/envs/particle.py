@@ -46,9 +46,9 @@ ACTION_DIRECTIONS = ((0.0, 0.0), (-1.0, 0.0), (1.0, 0.0), (0.0, -1.0), (0.0, 1.0
 NUM_ACTIONS = len(ACTION_DIRECTIONS)
 
 _STATE = ("obstacle_pos", "agent_pos", "landmark_pos", "agent_vel", "alive", "t", "reached", "keep")
-_SPAWN_GAP = 0.01
+_SPAWN_GAP = 0.01  # bodies start at least this far apart, so nothing is in contact at t = 0
 CENTRAL = 0.8
-"""Landmarks of ``landmark_spawn="central"`` lie in the central ``CENTRAL``× square (MAGE-X's navigation)."""  # bodies start at least this far apart, so nothing is in contact at t = 0
+"""Landmarks of ``landmark_spawn="central"`` lie in the central ``CENTRAL``× square (MAGE-X's navigation)."""
 
 
 def contact_force(delta: torch.Tensor, dist: torch.Tensor, dist_min: float,
