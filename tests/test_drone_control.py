@@ -8,8 +8,15 @@ import torch
 
 from masp_lite.envs import make
 from masp_lite.envs.drone_model import ARM_LENGTH, HUMMINGBIRD, MAX_THRUST, build_model, rotor_positions
-from masp_lite.planners.geometric import (MIXER, LeeController, allocation_matrix, mixing_matrix, position_loop,
-                                         quat_to_matrix, thrusts_to_commands)
+from masp_lite.planners.geometric import (
+    MIXER,
+    LeeController,
+    allocation_matrix,
+    mixing_matrix,
+    position_loop,
+    quat_to_matrix,
+    thrusts_to_commands,
+)
 from masp_lite.policies.drones import DroneHungarianGreedy
 
 

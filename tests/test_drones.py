@@ -5,8 +5,7 @@ import pytest
 import torch
 
 from masp_lite.envs import make
-from masp_lite.envs.drone_model import (COLLISION_RADIUS, HOVER_COMMAND, HUMMINGBIRD, MAX_THRUST,
-                                        build_model, save_xml)
+from masp_lite.envs.drone_model import COLLISION_RADIUS, HOVER_COMMAND, HUMMINGBIRD, MAX_THRUST, build_model, save_xml
 from masp_lite.envs.drones import CEILING, DroneWorld
 
 HOVER = HOVER_COMMAND
@@ -72,8 +71,10 @@ def test_rotor_lag_and_thrust_map():
 
 def test_drone_drone_crash_is_one_event_and_both_leave():
     w = make("drone-5", num_envs=1, seed=0)
-    pos = np.array([[-1.0, 0, 1.5], [-1.0 + 2 * COLLISION_RADIUS + 0.2, 0, 1.5], [2, 2, 1.5], [2, -2, 1.5], [-2, 2, 1.5]])
-    vel = np.zeros((5, 3)); vel[0, 0], vel[1, 0] = 2.0, -2.0
+    pos = np.array([[-1.0, 0, 1.5], [-1.0 + 2 * COLLISION_RADIUS + 0.2, 0, 1.5], [2, 2, 1.5], [2, -2, 1.5],
+                    [-2, 2, 1.5]])
+    vel = np.zeros((5, 3))
+    vel[0, 0], vel[1, 0] = 2.0, -2.0
     w.reset(options={"agent_pos": pos, "agent_vel": vel})
     total = torch.zeros(1, dtype=torch.long)
     for _ in range(20):
@@ -90,7 +91,8 @@ def test_floor_and_map_exit_are_crashes():
     w = make("drone-5", num_envs=1, seed=0)
     half = w.scenario.world_size / 2
     pos = np.array([[0, 0, 1.0], [half - 0.35, 0, 1.5], [2, 2, 1.5], [2, -2, 1.5], [-2, 2, 1.5]])
-    vel = np.zeros((5, 3)); vel[1, 0] = 3.0
+    vel = np.zeros((5, 3))
+    vel[1, 0] = 3.0
     w.reset(options={"agent_pos": pos, "agent_vel": vel})
     a = hover(w)
     a[0, 0] = -1.0  # drone 0: motors off, it falls
@@ -254,8 +256,10 @@ def _run_both(actions, steps, **reset):
 
 
 def test_one_world_path_matches_the_batched_path_bit_for_bit():
-    pos = np.array([[-1.0, 0, 1.5], [-1.0 + 2 * COLLISION_RADIUS + 0.2, 0, 1.5], [2, 2, 1.5], [2, -2, 1.5], [-2, 2, 1.5]])
-    vel = np.zeros((5, 3)); vel[0, 0], vel[1, 0], vel[2, 2] = 2.0, -2.0, 0.3  # a crash, a climb
+    pos = np.array([[-1.0, 0, 1.5], [-1.0 + 2 * COLLISION_RADIUS + 0.2, 0, 1.5], [2, 2, 1.5], [2, -2, 1.5],
+                    [-2, 2, 1.5]])
+    vel = np.zeros((5, 3))
+    vel[0, 0], vel[1, 0], vel[2, 2] = 2.0, -2.0, 0.3  # a crash, a climb
     a = torch.full((1, 5, 4), HOVER, dtype=torch.float64)
     a[0, 3, :2] = -0.3  # drone 3 tilts away and drifts
     (one, rows1), (two, rows2) = _run_both(a, 60, agent_pos=pos, agent_vel=vel, landmark_pos=pos + 0.1)
@@ -273,7 +277,8 @@ def test_skipped_coverage_tests_give_the_exact_answer():
     w = DroneWorld("drone-5", num_envs=2, seed=0, dtype=torch.float64)
     pos = np.array([[-2.0, -2, 1.5], [-2, 0, 1.5], [-2, 2, 1.5], [1, -2, 1.5], [1, 1, 1.5]])
     lms = pos + np.array([[0.5, 0, 0.1], [0.4, 0, -0.1], [0.6, 0.1, 0], [0.5, 0, 0], [-0.5, 0, 0.05]])
-    vel = np.zeros((5, 3)); vel[:, 0] = [0.4, 0.3, 0.5, 0.35, -0.3]  # gliding through their landmarks
+    vel = np.zeros((5, 3))
+    vel[:, 0] = [0.4, 0.3, 0.5, 0.35, -0.3]  # gliding through their landmarks
     w.reset(options={"agent_pos": pos, "agent_vel": vel, "landmark_pos": lms})
     exact, check = [0], w._check_coverage
 

@@ -5,10 +5,19 @@ import numpy as np
 import pytest
 import torch
 
-from masp_lite.envs import make
 from masp_lite.config import parse_value
-from masp_lite.evaluation import (CONTACT_KINDS, EpisodeLog, collision_rate, contact_breakdown, evaluate,
-                                  format_table, rollout, steps, success_rate)
+from masp_lite.envs import make
+from masp_lite.evaluation import (
+    CONTACT_KINDS,
+    EpisodeLog,
+    collision_rate,
+    contact_breakdown,
+    evaluate,
+    format_table,
+    rollout,
+    steps,
+    success_rate,
+)
 from masp_lite.policies.reference import RandomPolicy
 
 
@@ -162,3 +171,30 @@ def test_evaluate_bad_input():
         evaluate("random", "mpe-5", episodes=1, seeds=0)
     with pytest.raises(ValueError, match="checkpoint"):
         evaluate("random", "mpe-5", episodes=1, checkpoint="x.pt")
+
+
+# ------------------------------------------------------------------ claims
+def test_better_and_verdict_metric_by_metric():
+    from masp_lite.evaluation.claims import better, verdict
+    assert better("sr", 0.9, 0.8) == "a" and better("steps", 9.0, 8.0) == "b" and better("cr", 0.1, 0.2) == "a"
+    assert better("steps", None, 40.0) == "b" and better("steps", 40.0, None) == "a"
+    assert better("steps", None, None) == "neither" and better("cr", 0.3, 0.3 + 1e-12) == "tie"
+    with pytest.raises(ValueError, match="metric"):
+        better("speed", 1.0, 2.0)
+    rec = lambda sr, st, cr: {"sr": {"mean": sr, "std": 0.0}, "steps": {"mean": st, "std": None}, "cr": {"mean": cr}}  # noqa: E731
+    lines = verdict(rec(0.99, 30.0, 0.2), rec(1.0, None, 0.4), "A", "B")
+    assert len(lines) == 3 and lines[0].startswith("SR   : A   0.990   B   1.000") and lines[0].endswith("-> B better")
+    assert "B   never" in lines[1] and lines[1].endswith("-> A better") and lines[2].endswith("-> A better")
+    assert verdict({"sr": 0.5}, {"sr": 0.5}, metrics=["sr"]) == ["SR   : MASP   0.500   h-greedy   0.500   -> a tie"]
+
+
+def test_against_paper_uses_the_metrics_the_paper_reports():
+    from masp_lite.evaluation.claims import PAPER_MASP, against_paper
+    rec = {"scenario": "mpe-50", "sr": {"mean": 1.0}, "steps": {"mean": 50.0}, "cr": {"mean": 0.23}}
+    lines = against_paper(rec)
+    assert [line.split(":")[0].strip() for line in lines] == ["SR", "Steps", "CR"]
+    assert lines[0].endswith("-> ours better") and lines[1].endswith("-> paper better") and lines[2].endswith("a tie")
+    assert "paper  47.460" in lines[1] and PAPER_MASP["mpe-50"]["steps"] == 47.46
+    varying = against_paper({"scenario": "mpe-20to10", "sr": {"mean": 1.0}, "steps": {"mean": 20.0}, "cr": {"mean": 0}})
+    assert len(varying) == 1 and varying[0].startswith("Steps") and varying[0].endswith("-> ours better")
+    assert against_paper({"scenario": "drone-5", "sr": {"mean": 1.0}}) == []

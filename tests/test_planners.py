@@ -4,12 +4,12 @@ import pytest
 import torch
 
 from masp_lite.envs import make
-from masp_lite.policies import make_policy
 from masp_lite.planners.controllers import arrive_velocity, next_velocities, track_path, velocity_to_action
-from masp_lite.policies.planners import HOrca, HRRTStar, HungarianPlanner, HVoronoi, split_collisions
 from masp_lite.planners.orca import orca_halfplanes, orca_velocities, solve_orca
 from masp_lite.planners.rrt_star import plan_rrt_star, rewire, segment_hits
 from masp_lite.planners.voronoi import plan_voronoi
+from masp_lite.policies import make_policy
+from masp_lite.policies.planners import HOrca, HRRTStar, HungarianPlanner, HVoronoi, split_collisions
 
 RA, RO = 0.1, 0.1
 

@@ -9,7 +9,6 @@ pairs in contact and ``AO`` the alive agent–obstacle pairs in contact,
 so ``2 * collisions - agent_collisions.sum() == AO``, the contacts with obstacles.
 """
 import numpy as np
-import pytest
 import torch
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st

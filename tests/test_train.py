@@ -6,9 +6,9 @@ import torch
 
 from masp_lite.__main__ import main
 from masp_lite.config import TrainConfig
+from masp_lite.nets.masp import MASPNets
 from masp_lite.training import parse_config, train
 from masp_lite.weights import load_weights, save_weights
-from masp_lite.nets.masp import MASPNets
 
 TINY = dict(num_envs=3, updates=4, checkpoint_every=2, eval_every=2, eval_episodes=2, ppo_epochs=1,
             num_minibatches=2, width=8)
@@ -180,7 +180,8 @@ def test_ship_run_keeps_every_stage_and_ships_only_where_told(tmp_path):
     assert last["seed"] == 1 and last["init"].endswith("weights.pt") and last["overrides"] == {"num_obstacles": 7}
     assert [s["training"]["seed"] for s in entry["stages"]] == [0, 1]
     assert entry["stages"][0]["training"]["wall_clock_s"] == first["wall_clock_s"]
-    assert (history / "mpe-5-seed1.stage1.progress.csv").read_text() == (tmp_path / "first" / "progress.csv").read_text()
+    first_curve = (tmp_path / "first" / "progress.csv").read_text()
+    assert (history / "mpe-5-seed1.stage1.progress.csv").read_text() == first_curve
     assert json.loads((history / "mpe-5-seed1.manifest.json").read_text()) == entry
     slim = json.loads((weights_dir / "manifest.json").read_text())["mpe-5"]
     assert slim["stages"] == 2 and slim["env_steps"] == first["env_steps"] + second["env_steps"]

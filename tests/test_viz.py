@@ -81,3 +81,103 @@ def test_html_and_drone_playback_go_to_the_3d_exporter(tmp_path, monkeypatch):
     # method options cannot reach the exporter: one clear error instead of a silent drop
     assert main(["play", "--method", "random", "--scenario", "mpe-5", "--out", str(out),
                  "--set", "seed=1"]) == 2
+
+
+# ------------------------------------------------------- draw_obs, training curves
+def test_draw_obs_shows_one_world_of_an_observation():
+    import matplotlib.pyplot as plt
+
+    from masp_lite.viz.anim2d import COLOURS, draw_obs, frame_from_obs
+    w = make("mpe-20to10", num_envs=3, seed=0, horizon=6, change_step=2)
+    obs = w.reset()
+    for _ in range(3):
+        obs, _ = w.step(make_policy("random", w).act(obs))
+    frame = frame_from_obs(obs, w.scenario, env=2)
+    np.testing.assert_array_equal(frame["agent_pos"], obs["agent_pos"][2].numpy())
+    assert frame["t"] == 3 and frame["horizon"] == 6 and frame["varying"] and frame["assignment"] is None
+    fig, ax = plt.subplots()
+    scene = draw_obs(obs, w.scenario, env=2, ax=ax, title="after the drop")
+    assert scene.ax is ax and ax.get_title() == "after the drop"
+    np.testing.assert_allclose(scene.agents.get_offsets(), obs["agent_pos"][2].numpy())
+    np.testing.assert_allclose(scene.obstacles.get_offsets(), obs["obstacle_pos"][2].numpy())
+    dropped = matplotlib.colors.to_rgb(COLOURS["dropped"])
+    edges = [tuple(e[:3]) == dropped for e in scene.agents.get_edgecolors()]
+    assert edges == (~obs["alive"][2]).tolist() and sum(edges) == 10
+    assert draw_obs(obs, w.scenario, env=0, ax=ax).ax.get_title().startswith("t = 3/6")
+    with pytest.raises(ValueError, match="env"):
+        frame_from_obs(obs, w.scenario, env=3)
+    plt.close(fig)
+
+
+def _progress_csv(path, rows):
+    from masp_lite.training import CSV_FIELDS
+    lines = [",".join(CSV_FIELDS)]
+    for i, row in enumerate(rows, start=1):
+        values = {k: str(0.1 * i) for k in CSV_FIELDS}
+        values.update(iteration=str(i), env_steps=str(100 * i), **row)
+        lines.append(",".join(values[k] for k in CSV_FIELDS))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_read_progress_columns_nan_where_empty_and_last_evaluation(tmp_path):
+    from masp_lite.viz.progress import last_evaluation, read_progress
+    empty = {"eval_sr": "", "eval_steps": "", "eval_cr": ""}
+    path = _progress_csv(tmp_path / "progress.csv", [empty, {"eval_sr": "0.5", "eval_steps": "20", "eval_cr": "0.25"},
+                                                     empty])
+    cols = read_progress(path)
+    np.testing.assert_array_equal(cols["iteration"], [1, 2, 3])
+    np.testing.assert_array_equal(cols["env_steps"], [100, 200, 300])
+    assert cols["eval_sr"].dtype == float and np.isnan(cols["eval_sr"][[0, 2]]).all() and cols["eval_sr"][1] == 0.5
+    assert last_evaluation(cols) == {"iteration": 2, "env_steps": 200, "sr": 0.5, "steps": 20.0, "cr": 0.25}
+    assert last_evaluation(read_progress(_progress_csv(tmp_path / "none.csv", [empty]))) is None
+    with pytest.raises(ValueError, match="existing progress.csv"):
+        read_progress(tmp_path / "missing.csv")
+    (tmp_path / "header.csv").write_text("iteration,env_steps\n")
+    with pytest.raises(ValueError, match="no rows"):
+        read_progress(tmp_path / "header.csv")
+    (tmp_path / "bad.csv").write_text("iteration,env_steps\n1,many\n")
+    with pytest.raises(ValueError, match="'env_steps': expected numbers"):
+        read_progress(tmp_path / "bad.csv")
+
+
+def test_plot_progress_draws_training_evaluation_and_baseline(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from masp_lite.viz.progress import plot_progress, read_progress
+    rows = [{"eval_sr": "", "eval_steps": "", "eval_cr": ""}] * 3 + [{"eval_sr": "0.9", "eval_steps": "12",
+                                                                       "eval_cr": "0.3"}]
+    cols = read_progress(_progress_csv(tmp_path / "p.csv", rows * 2))
+    fig = plot_progress(cols, "a run", baseline={"sr": 0.97, "steps": 11.0, "cr": 0.4}, baseline_label="base")
+    sr_ax, steps_ax, _, rewards_ax = fig.axes
+    train, evaluation, base = sr_ax.get_lines()
+    np.testing.assert_array_equal(train.get_xdata(), cols["env_steps"])
+    np.testing.assert_array_equal(evaluation.get_xdata(), [400, 800])      # only the evaluated rows
+    np.testing.assert_array_equal(evaluation.get_ydata(), [0.9, 0.9])
+    assert base.get_ydata()[0] == 0.97 and base.get_label() == "base" and steps_ax.get_lines()[2].get_ydata()[0] == 11
+    assert [line.get_label() for line in rewards_ax.get_lines()] == ["R_GM (eq. 1)", "R_CAE (eq. 5)"]
+    assert fig._suptitle.get_text() == "a run"
+    plt.close(fig)
+    fig = plot_progress(cols)                                                # no baseline: two lines per panel
+    assert len(fig.axes[0].get_lines()) == 2
+    plt.close(fig)
+
+
+def test_training_history_of_the_shipped_weights(tmp_path):
+    from masp_lite.viz.progress import last_evaluation, read_progress, training_history
+    from masp_lite.weights import read_manifest
+    with pytest.raises(ValueError, match="no shipped weights"):
+        training_history("mpe-7")
+    assert training_history("mpe-20", root=tmp_path) is None          # an installed package: no results/
+    history = training_history("mpe-20to10")                         # a team change uses its preset's history
+    if history is None:
+        pytest.skip("results/training/ is not in this checkout")
+    entry = read_manifest()["mpe-20"]
+    assert history["scenario"] == "mpe-20" and history["sha256"] == entry["sha256"]
+    assert len(history["stages"]) == entry["stages"]
+    assert sum(s["training"]["env_steps"] for s in history["stages"]) == entry["env_steps"]
+    last = history["stages"][-1]
+    assert last["progress"].name == "mpe-20-seed0.progress.csv" and last["progress"].is_absolute()
+    cols = read_progress(last["progress"])
+    assert len(cols["iteration"]) == last["training"]["iterations"]
+    assert abs(last_evaluation(cols)["sr"] - last["training"]["final_eval"]["sr"]) < 1e-4

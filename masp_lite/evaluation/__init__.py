@@ -5,7 +5,9 @@
 * :mod:`.rollouts` — ``rollout`` (episodes of a policy, decision time only) and
   ``contact_breakdown``;
 * :mod:`.evaluate` — ``evaluate``: a method over seeds × episodes, the JSON record;
-* :mod:`.tables` — records as the paper's tables (text, markdown, LaTeX).
+* :mod:`.tables` — records as the paper's tables (text, markdown, LaTeX);
+* :mod:`.claims` — which of two records is better, metric by metric, and the paper's
+  MASP numbers to compare with (``verdict``, ``against_paper``, ``PAPER_MASP``).
 """
 from .evaluate import MAX_ENVS, evaluate
 from .metrics import EpisodeLog, collision_rate, reached_target, steps, success_rate

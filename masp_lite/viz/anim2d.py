@@ -2,7 +2,8 @@
 
 :func:`record` runs one episode of a policy and keeps, per step, a *frame*: a dict of
 numpy arrays for one world of the batch. :func:`draw_frame` draws a frame on an axes (a
-:class:`Scene`, whose ``update`` shows another frame),
+:class:`Scene`, whose ``update`` shows another frame); :func:`draw_obs` draws one world of
+an observation directly (a snapshot, no policy or recording needed),
 :func:`animate` turns frames into a ``matplotlib.animation.FuncAnimation`` (in JupyterLab:
 ``IPython.display.HTML(anim.to_jshtml())``), and :func:`save` writes it as ``.gif``
 (pillow) or ``.mp4`` (the ffmpeg binary shipped by ``imageio-ffmpeg``).
@@ -30,7 +31,7 @@ import matplotlib
 import numpy as np
 import torch
 
-__all__ = ["record", "draw_frame", "animate", "save", "Scene"]
+__all__ = ["record", "draw_frame", "draw_obs", "frame_from_obs", "animate", "save", "Scene"]
 
 COLOURS = {"agent": "#1f77b4", "idle": "#9ecae1", "dropped": "#d9d9d9", "hit": "#d62728",
            "landmark": "#31a354", "reached": "#bdbdbd", "obstacle": "#525252"}
@@ -140,6 +141,44 @@ class Scene:
 def draw_frame(ax, frame: dict) -> Scene:
     """Draw one frame on ``ax`` (cleared first); returns the :class:`Scene` for later updates."""
     return Scene(ax, frame)
+
+
+def frame_from_obs(obs: dict, scenario, env: int = 0) -> dict:
+    """The frame of world ``env`` of a batched observation ``obs`` of ``scenario``.
+
+    A snapshot: no goals (``assignment`` is ``None``), no contacts and no collisions so
+    far, since an observation does not carry them. Positions keep their first two axes.
+    """
+    batch = obs["agent_pos"].shape[0]
+    if not 0 <= env < batch:
+        raise ValueError(f"env: expected an index in [0, {batch}), got {env}")
+    np_ = lambda key: obs[key][env].detach().cpu().numpy().copy()  # noqa: E731
+    return {
+        "agent_pos": np_("agent_pos")[:, :2], "landmark_pos": np_("landmark_pos")[:, :2],
+        "obstacle_pos": np_("obstacle_pos")[:, :2] if "obstacle_pos" in obs else np.zeros((0, 2)),
+        "alive": np_("alive"), "covered": np_("covered"), "reached": np_("reached"),
+        "agent_collisions": np.zeros(obs["agent_pos"].shape[1], dtype=np.int64), "collisions": 0,
+        "assignment": None, "t": int(obs["t"][env]), "horizon": int(scenario.horizon),
+        "varying": bool(scenario.varying), "world_size": float(scenario.world_size),
+        "agent_radius": scenario.agent_radius, "landmark_radius": scenario.landmark_radius,
+        "obstacle_radius": scenario.obstacle_radius,
+    }
+
+
+def draw_obs(obs: dict, scenario, env: int = 0, ax=None, title: str | None = None) -> Scene:
+    """Draw world ``env`` of an observation on ``ax`` (default: the current axes).
+
+    Chapter 01's picture of spawns, contacts and team changes without recording an
+    episode: the same bodies and colours as :func:`draw_frame` (dropped agents as pale
+    dashed outlines). ``title`` replaces the step/SR title. Returns the :class:`Scene`;
+    its ``ax`` takes further plotting (paths, limits).
+    """
+    import matplotlib.pyplot as plt
+
+    scene = Scene(plt.gca() if ax is None else ax, frame_from_obs(obs, scenario, env))
+    if title is not None:
+        scene.title.set_text(title)
+    return scene
 
 
 def animate(frames: list[dict], interval: int = 150, figsize=(5.0, 5.0)):

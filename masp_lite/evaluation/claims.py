@@ -1,0 +1,72 @@
+"""Which result is better, metric by metric — and the paper's MASP numbers to compare with.
+
+The course never writes "MASP beats h-greedy" in advance: it computes the comparison
+from :func:`~masp_lite.evaluation.evaluate` records, the same way for every pair.
+
+* :func:`better` — which of two means is better on one metric (higher SR, lower Steps and
+  CR). A Steps mean of ``None`` means no episode ever covered every landmark (the paper's
+  backslash): worse than any number;
+* :func:`verdict` — one line per metric: both means and which one is better;
+* :data:`PAPER_MASP` — MASP's means as the paper reports them (Table I for fixed teams;
+  Steps only for the team changes, as chapter 00 quotes them);
+* :func:`against_paper` — :func:`verdict` of a record against :data:`PAPER_MASP` for its
+  scenario, on the metrics the paper reports there.
+
+Both sides may be ``evaluate`` records (``{"sr": {"mean": ..., "std": ...}, ...}``) or
+plain means (``{"sr": 0.99, ...}``).
+"""
+from __future__ import annotations
+
+__all__ = ["PAPER_MASP", "HIGHER_IS_BETTER", "better", "verdict", "against_paper"]
+
+#: MASP's means in the paper: Table I (fixed teams) and the team-change Steps.
+PAPER_MASP = {
+    "mpe-5": {"steps": 7.54, "sr": 1.00, "cr": 0.47},
+    "mpe-20": {"steps": 25.61, "sr": 1.00, "cr": 0.44},
+    "mpe-50": {"steps": 47.46, "sr": 0.99, "cr": 0.23},
+    "mpe-20to10": {"steps": 22.38},
+    "mpe-50to20": {"steps": 46.49},
+}
+
+#: Metric -> whether a higher mean is better.
+HIGHER_IS_BETTER = {"sr": True, "steps": False, "cr": False}
+_LABELS = {"sr": "SR", "steps": "Steps", "cr": "CR"}
+
+
+def _mean(result: dict, key: str):
+    value = result[key]
+    return value.get("mean") if isinstance(value, dict) else value
+
+
+def better(metric: str, a, b, tol: float = 1e-9) -> str:
+    """``"a"``, ``"b"``, ``"tie"`` (within ``tol``) or ``"neither"`` (both ``None``) for two means."""
+    if metric not in HIGHER_IS_BETTER:
+        raise ValueError(f"better: expected a metric in {sorted(HIGHER_IS_BETTER)}, got {metric!r}")
+    if a is None and b is None:
+        return "neither"
+    if a is None or b is None:
+        return "b" if a is None else "a"
+    if abs(a - b) < tol:
+        return "tie"
+    return "a" if (a > b) == HIGHER_IS_BETTER[metric] else "b"
+
+
+def verdict(rec_a: dict, rec_b: dict, name_a: str = "MASP", name_b: str = "h-greedy",
+            metrics=("sr", "steps", "cr")) -> list[str]:
+    """One line per metric: ``"SR   : MASP   0.990   h-greedy   1.000   -> h-greedy better"``."""
+    show = lambda v: "  never" if v is None else f"{v:7.3f}"  # noqa: E731
+    words = {"a": f"{name_a} better", "b": f"{name_b} better", "tie": "a tie",
+             "neither": "neither ever covers every landmark"}
+    lines = []
+    for key in metrics:
+        a, b = _mean(rec_a, key), _mean(rec_b, key)
+        lines.append(f"{_LABELS[key]:5s}: {name_a} {show(a)}   {name_b} {show(b)}   -> {words[better(key, a, b)]}")
+    return lines
+
+
+def against_paper(record: dict, name: str = "ours") -> list[str]:
+    """:func:`verdict` of ``record`` against the paper's MASP on its scenario ([] if none reported)."""
+    paper = PAPER_MASP.get(record["scenario"])
+    if paper is None:
+        return []
+    return verdict(record, paper, name, "paper", metrics=[k for k in ("sr", "steps", "cr") if k in paper])
