@@ -45,7 +45,7 @@ from .config import TrainConfig, field_types, parse_sets
 from .envs import OVERRIDES, Scenario, make
 from .evaluation import collision_rate, rollout, steps, success_rate
 from .policies.masp import MASPPolicy
-from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256
+from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256, trained_world
 
 __all__ = ["train", "parse_config", "evaluate_nets", "ship_run", "CSV_FIELDS", "EVAL_SEED"]
 
@@ -149,7 +149,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started,
                   command=first_command or command or default_command, init=str(init) if init is not None else "")
         _save_state(state_path, st)
-        save_weights(out / "weights.pt", trainer.nets, sc)
+        save_weights(out / "weights.pt", trainer.nets, trainer.world.scenario)
         _write_csv(out / "progress.csv", rows)
 
     bar = None
@@ -243,7 +243,8 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
         file, target = f"{name}.pt", Path(weights_dir) / f"{name}.pt"
     atomic_write_bytes(target, data)
     digest = sha256(target)
-    history = {"scenario": name, "seed": seed, "file": file, "sha256": digest, "arch": rec["arch"],
+    history = {"scenario": name, "world": trained_world(rec), "seed": seed, "file": file, "sha256": digest,
+               "arch": rec["arch"],
                "evaluation": evaluation, "note": note, "stages": stages}
     atomic_write_bytes(history_dir / f"{stem}.manifest.json",
                        (json.dumps(history, indent=2, sort_keys=True) + "\n").encode())
@@ -251,7 +252,8 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
         manifest_path = Path(weights_dir) / "manifest.json"
         manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
         runs = [st["training"] for st in stages]
-        manifest[name] = {"file": file, "sha256": digest, "scenario": name, "arch": rec["arch"], "seed": seed,
+        manifest[name] = {"file": file, "sha256": digest, "scenario": name, "world": trained_world(rec),
+                          "arch": rec["arch"], "seed": seed,
                           "command": runs[-1]["command"], "stages": len(runs),
                           "env_steps": sum(r["env_steps"] for r in runs),
                           "wall_clock_s": round(sum(r["wall_clock_s"] for r in runs), 1),

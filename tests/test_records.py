@@ -2,7 +2,7 @@
 
 A record (``results/**/*.json`` with ``method``, ``scenario``, ``seeds``...) is the output
 of ``evaluate --json``; running :func:`masp_lite.evaluation.evaluate` again with its
-method, scenario, seeds, episodes, overrides and options must give the same numbers,
+method, scenario, world definition, seeds, episodes, overrides and options must give the same numbers,
 exactly (decision time is wall-clock and is not compared). A record made with a weights
 file names it and its SHA-256; the file must still be there, unchanged.
 
@@ -41,9 +41,12 @@ def _cost_s(rec) -> float:
     return rec["decision_ms"]["mean"] / 1e3 * rec["episodes_per_seed"] * len(rec["seeds"]) * sc.horizon
 
 
-def test_the_records_are_found():
+def test_the_records_are_found_and_name_their_world():
     assert len(RECORDS) >= 30
     assert {r["method"] for _, r in RECORDS} >= {"masp", "h-greedy", "h-orca", "h-rrtstar", "h-voronoi"}
+    for path, rec in RECORDS:  # records from different worlds can never be mixed silently
+        assert rec.get("world") == get_scenario(rec["scenario"], **{**rec.get("overrides", {}),
+                                                                    **rec["world"]}).world, path.name
 
 
 @pytest.mark.slow
@@ -55,8 +58,9 @@ def test_record_re_evaluates_identically(path, rec, monkeypatch):
     if "checkpoint" in options:
         assert sha256(ROOT / options["checkpoint"]) == rec["checkpoint_sha256"], "the weights file changed"
         monkeypatch.chdir(ROOT)  # checkpoint paths are relative to the repository root
+    overrides = {**rec["world"], **rec.get("overrides", {})}  # the world it was made in, whatever the preset's
     again = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
-                     overrides=rec.get("overrides"), method_options=options)
+                     overrides=overrides, method_options=options)
     for key in ("sr", "steps", "cr"):
         assert again[key] == rec[key], f"{key}: {again[key]} now, {rec[key]} in {path.name}"
 

@@ -195,3 +195,15 @@ def test_init_refuses_another_architecture(tmp_path):
     with pytest.raises(ValueError, match="differs from the configured"):
         train("mpe-5", MAPPOConfig(**{**TINY, "updates": 1, "width": 16}), tmp_path / "wide", seed=0, progress=False,
               init=tmp_path / "base" / "weights.pt")
+
+
+def test_weights_remember_their_world_and_refuse_another(tmp_path):
+    from masp_lite.envs import get_scenario
+    from masp_lite.weights import read_weights, trained_world
+    paper = get_scenario("mpe-5", integration="velocity_first", landmark_spawn="central")
+    save_weights(tmp_path / "w.pt", MASPNets(width=8), paper)
+    assert trained_world(read_weights(tmp_path / "w.pt")) == paper.world
+    load_weights(tmp_path / "w.pt", scenario=paper)                                  # its own world: fine
+    with pytest.raises(ValueError, match="trained in the world integration=velocity_first"):
+        load_weights(tmp_path / "w.pt", scenario=get_scenario("mpe-5", integration="mpe2", landmark_spawn="whole"))
+    load_weights(tmp_path / "w.pt", scenario=get_scenario("mpe-5", integration="mpe2"), any_scenario=True)

@@ -158,6 +158,7 @@ class BatchedWorld:
     def __repr__(self):
         sc = self.scenario
         extra = f", num_obstacles={sc.num_obstacles}" if self.kind == "particle" else ""
+        world = "".join(f", {k}={v!r}" for k, v in sc.world.items())
         return (f"{type(self).__name__}({sc.name!r}, num_envs={self.num_envs}, num_agents={sc.num_agents}"
-                f"{extra}, world_size={sc.world_size:g}, horizon={sc.horizon}, "
+                f"{extra}, world_size={sc.world_size:g}, horizon={sc.horizon}{world}, "
                 f"device={str(self.device)!r})")

@@ -28,7 +28,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-__all__ = ["Scenario", "SCENARIOS", "OVERRIDES", "get_scenario", "scenario_names"]
+__all__ = ["Scenario", "SCENARIOS", "OVERRIDES", "get_scenario", "scenario_names", "MPE2_WORLD", "world_name"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +67,14 @@ class Scenario:
     """Where landmarks spawn: ``"whole"`` map (uniform, as agents and obstacles) or
     ``"central"``, the central 0.8× square (MAGE-X's navigation scenario:
     ``0.8 * uniform(-L/2, L/2)`` per axis)."""
+
+    @property
+    def world(self) -> dict:
+        """The world definition every record and weights file stores: update order and
+        landmark spawn (particle worlds; drones have one world, ``{}``)."""
+        if self.kind != "particle":
+            return {}
+        return {"integration": self.integration, "landmark_spawn": self.landmark_spawn}
 
     @property
     def varying(self) -> bool:
@@ -114,6 +122,13 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in [
 INTEGRATIONS = ("mpe2", "velocity_first")
 #: Landmark spawn regions of the particle world (:attr:`Scenario.landmark_spawn`).
 LANDMARK_SPAWNS = ("whole", "central")
+#: PettingZoo mpe2's world: what records and weights files that name no world were made in.
+MPE2_WORLD = {"integration": "mpe2", "landmark_spawn": "whole"}
+
+
+def world_name(world: dict) -> str:
+    """A world definition in words, e.g. ``"integration=mpe2, landmark_spawn=whole"``."""
+    return ", ".join(f"{k}={v}" for k, v in sorted(world.items())) or "the drone world"
 
 #: Names accepted as overrides, with the type each value is converted to.
 OVERRIDES: dict[str, type] = {

@@ -1,6 +1,7 @@
 """``evaluate``: a method on a scenario over several seeds — the record every table is made of.
 
-The record is the ``evaluate --json`` format (``method``, ``scenario``, ``seeds``,
+The record is the ``evaluate --json`` format (``method``, ``scenario``, ``world`` — the
+world definition it ran in, :attr:`~masp_lite.envs.Scenario.world` — ``seeds``,
 ``episodes_per_seed``, ``sr``/``steps``/``cr``/``decision_ms`` as ``{"mean", "std"}``,
 plus ``overrides`` and ``method_options`` when given, and the SHA-256 of the weights
 file when a checkpoint is): the paper's "mean (standard
@@ -92,11 +93,12 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
         if bar is not None:
             bar.close()
     log = EpisodeLog.cat(logs)
+    sc = world.scenario
     sc_name = scenario if isinstance(scenario, str) else scenario.name
     steps_ = steps(log).numpy()
     any_solved = bool(reached_target(log).any())
     return {
-        "method": method, "scenario": sc_name, "seeds": seeds, "episodes_per_seed": episodes,
+        "method": method, "scenario": sc_name, "world": sc.world, "seeds": seeds, "episodes_per_seed": episodes,
         "sr": _stats(success_rate(log).numpy()),
         "steps": _stats(steps_) if any_solved else {"mean": None, "std": None},
         "cr": _stats(collision_rate(log).numpy()),

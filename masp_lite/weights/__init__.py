@@ -6,7 +6,8 @@ This folder also holds the shipped weights, one file per scenario (``mpe-5.pt``,
 A weights file is a ``torch.save`` of plain tensors and numbers (it loads with
 ``torch.load(..., weights_only=True)``)::
 
-    {"format": FORMAT, "scenario": "mpe-20", "arch": {...NetConfig fields...},
+    {"format": FORMAT, "scenario": "mpe-20", "world": {"integration": ..., "landmark_spawn": ...},
+     "arch": {...NetConfig fields...},
      "state_dict": {...all four networks...}}
 
 ``manifest.json`` lists the shipped files, one entry per scenario: file name, SHA-256,
@@ -31,9 +32,11 @@ from pathlib import Path
 
 import torch
 
+from ..envs.scenarios import MPE2_WORLD, get_scenario, world_name
 from ..nets.masp import MASPNets
 
 __all__ = ["FORMAT", "HERE", "MANIFEST", "save_weights", "load_weights", "read_weights", "read_manifest",
+           "trained_world",
            "default_checkpoint", "base_scenario", "sha256", "atomic_write_bytes"]
 
 FORMAT = "masp-lite/masp-weights/1"
@@ -70,12 +73,25 @@ def atomic_write_bytes(path, data: bytes) -> None:
         raise
 
 
-def save_weights(path, nets, scenario: str) -> None:
-    """Save ``nets`` (a :class:`~masp_lite.nets.masp.MASPNets`) atomically as a weights file."""
+def save_weights(path, nets, scenario) -> None:
+    """Save ``nets`` (a :class:`~masp_lite.nets.masp.MASPNets`) atomically as a weights file.
+
+    ``scenario``: the :class:`~masp_lite.envs.Scenario` trained on (its preset and world
+    definition are stored), or a preset name (the preset's own world)."""
     buf = io.BytesIO()
-    torch.save({"format": FORMAT, "scenario": base_scenario(scenario), "arch": dict(nets.arch),
+    torch.save({"format": FORMAT, "scenario": base_scenario(scenario), "world": _world(scenario),
+                "arch": dict(nets.arch),
                 "state_dict": {k: v.detach().cpu().clone() for k, v in nets.state_dict().items()}}, buf)
     atomic_write_bytes(path, buf.getvalue())
+
+
+def _world(scenario) -> dict:
+    return (get_scenario(scenario) if isinstance(scenario, str) else scenario).world
+
+
+def trained_world(record: dict) -> dict:
+    """The world definition a weights file was trained in (files without one: mpe2's world)."""
+    return dict(record.get("world", MPE2_WORLD))
 
 
 def read_manifest() -> dict:
@@ -118,7 +134,8 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
     """Build :class:`~masp_lite.nets.masp.MASPNets` from a weights file; returns ``(nets, record)``.
 
     ``path`` ``None`` means the shipped file for ``scenario``. Unless ``any_scenario``,
-    the file must have been trained for ``base_scenario(scenario)``.
+    the file must have been trained for ``base_scenario(scenario)``, in the scenario's
+    world definition (update order, landmark spawn; :func:`trained_world`).
     """
     if path is None:
         if scenario is None:
@@ -128,6 +145,11 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
     if scenario is not None and not any_scenario and rec["scenario"] != base_scenario(scenario):
         raise ValueError(f"checkpoint {str(path)!r} was trained for {rec['scenario']!r}; expected weights for "
                          f"{base_scenario(scenario)!r} (pass any_scenario=True to use them anyway)")
+    if scenario is not None and not any_scenario and not isinstance(scenario, str) and \
+            trained_world(rec) != scenario.world:
+        raise ValueError(f"checkpoint {str(path)!r} was trained in the world {world_name(trained_world(rec))}; "
+                         f"expected weights for {world_name(scenario.world)} (pass any_scenario=True to use "
+                         "them anyway)")
     try:
         nets = MASPNets(**rec["arch"])
         nets.load_state_dict(rec["state_dict"])
