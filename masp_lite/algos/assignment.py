@@ -34,8 +34,6 @@ from __future__ import annotations
 import numpy as np
 import torch
 from scipy.optimize import linear_sum_assignment
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import maximum_bipartite_matching
 from scipy.spatial.distance import cdist
 
 __all__ = ["hungarian", "hungarian_random_subset", "bottleneck", "assignment_cost", "distance_matrix", "check_power"]
@@ -162,24 +160,32 @@ def hungarian_random_subset(agent_pos, goal_pos, agent_mask=None, goal_mask=None
 def _bottleneck_one(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rows and columns of the min-max assignment of one cost matrix, ties broken by total cost.
 
-    The longest edge of an optimal assignment is one of the matrix's entries: binary search
-    over the sorted distinct entries for the smallest ``t`` whose edges ``d <= t`` still
-    hold a matching of size ``min(n_rows, n_cols)`` (scipy's Hopcroft–Karp), then solve
-    ``linear_sum_assignment`` with the longer edges priced out.
+    The longest edge of an optimal assignment is one of the matrix's entries, between two
+    bounds: every member of the smaller side needs an edge (so at least the largest of
+    their shortest edges), and the min-sum assignment is one candidate (so at most its
+    longest edge). Binary search over the entries between them for the smallest ``t``
+    whose edges ``d <= t`` still hold a matching of size ``min(n_rows, n_cols)`` — true
+    when ``linear_sum_assignment`` on the 0/1 matrix ``d > t`` finds a zero-cost
+    assignment (a few microseconds, faster here than building a sparse graph for
+    Hopcroft–Karp) — then ``linear_sum_assignment`` with the longer edges priced out.
     """
-    k = min(d.shape)
-    values = np.unique(d)
+    r, c = linear_sum_assignment(d)
+    upper = d[r, c].max()
+    lower = (d.min(axis=1) if d.shape[0] <= d.shape[1] else d.min(axis=0)).max()
+    values = np.unique(d[(d >= lower) & (d <= upper)])
     lo, hi = 0, len(values) - 1
     while lo < hi:
         mid = (lo + hi) // 2
-        match = maximum_bipartite_matching(csr_matrix(d <= values[mid]), perm_type="column")
-        if int((match >= 0).sum()) >= k:
+        over = d > values[mid]
+        rr, cc = linear_sum_assignment(over)
+        if not over[rr, cc].any():
             hi = mid
         else:
             lo = mid + 1
-    t = values[lo]
+    if values[lo] == upper:  # the min-sum assignment is already min-max
+        return r, c
     big = (d.sum() + 1.0) * 2  # more than any assignment's total within the threshold
-    return linear_sum_assignment(np.where(d <= t, d, big))
+    return linear_sum_assignment(np.where(d <= values[lo], d, big))
 
 
 def bottleneck(agent_pos, goal_pos, agent_mask=None, goal_mask=None) -> torch.Tensor:
