@@ -1,6 +1,6 @@
 """Command line: ``python -m masp_lite COMMAND ...`` — one module per command, argparse only.
 
-Each command module (:mod:`.evaluate`, :mod:`.train`, :mod:`.play`, :mod:`.bench`) provides
+Each command module (:mod:`.evaluate`, :mod:`.train`, :mod:`.play`, :mod:`.reproduce`, :mod:`.bench`) provides
 ``add_arguments(parser)`` and ``run(args) -> int`` over the library's public functions;
 this file only dispatches, so commands stay independent. A ``ValueError`` (bad input)
 becomes one ``error: ...`` line and exit status 2.
@@ -18,6 +18,7 @@ COMMANDS = {
     "evaluate": ("masp_lite.cli.evaluate", "evaluate a method on a scenario (SR, Steps, CR, decision time)"),
     "train": ("masp_lite.cli.train", "train a learned method (checkpoints, resume, manifest)"),
     "play": ("masp_lite.cli.play", "record an episode as .gif/.mp4 (2-D) or .html (3-D)"),
+    "reproduce": ("masp_lite.cli.reproduce", "the paper's tables, ours beside the paper's"),
     "bench": ("masp_lite.cli.bench", "throughput and latency benchmarks"),
 }
 

@@ -1,7 +1,8 @@
 """``evaluate``: a method on a scenario over several seeds — the record every table is made of.
 
 The record is the ``evaluate --json`` format (``method``, ``scenario``, ``world`` — the
-world definition it ran in, :attr:`~masp_lite.envs.Scenario.world` — ``seeds``,
+world definition it ran in, :attr:`~masp_lite.envs.Scenario.world` — ``seeds``, ``num_envs``
+(the worlds side by side, over which ``decision_ms`` is amortised),
 ``episodes_per_seed``, ``sr``/``steps``/``cr``/``decision_ms`` as ``{"mean", "std"}``,
 plus ``overrides`` and ``method_options`` when given, and the SHA-256 of the weights
 file when a checkpoint is): the paper's "mean (standard
@@ -99,6 +100,7 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     any_solved = bool(reached_target(log).any())
     return {
         "method": method, "scenario": sc_name, "world": sc.world, "seeds": seeds, "episodes_per_seed": episodes,
+        "num_envs": B,
         "sr": _stats(success_rate(log).numpy()),
         "steps": _stats(steps_) if any_solved else {"mean": None, "std": None},
         "cr": _stats(collision_rate(log).numpy()),

@@ -1,0 +1,43 @@
+"""``python -m masp_lite reproduce [--table NAME] [--format F] [--evaluate | --quick] [--records DIR]``.
+
+Prints the paper's tables with ours beside the paper's (:mod:`masp_lite.evaluation.reproduce`):
+from the records in ``results/`` (seconds), or ``--evaluate`` — every registered method of
+the table with its shipped weights, 3 seeds × 100 episodes (about 40 minutes for "mpe" on
+one core, most of it the planners on mpe-50) — or ``--quick``, 3 seeds × 4 episodes (a few
+minutes), for a first look and for tests.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..evaluation.reproduce import TABLES, build, evaluate_records, load_records, render
+
+__all__ = ["add_arguments", "run", "RESULTS"]
+
+#: ``results/`` of the source checkout this package runs from.
+RESULTS = Path(__file__).resolve().parents[2] / "results"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--table", choices=list(TABLES), action="append", default=None,
+                        help="a table to print (repeatable; default: every table)")
+    parser.add_argument("--format", default="markdown", choices=["markdown", "text", "latex"])
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--evaluate", action="store_true", help="evaluate the methods now, 3 seeds x 100 episodes")
+    mode.add_argument("--quick", action="store_true", help="evaluate the methods now, 3 seeds x 4 episodes")
+    parser.add_argument("--records", default=None, help=f"folder of evaluate records (default {RESULTS})")
+
+
+def run(args) -> int:
+    names = args.table or list(TABLES)
+    stored = None
+    for name in names:
+        if args.evaluate or args.quick:
+            records = evaluate_records(name, episodes=4 if args.quick else 100, progress=True)
+        else:
+            if stored is None:
+                stored = load_records(args.records or RESULTS)
+            records = stored
+        print(render(build(name, records, latex=args.format == "latex"), args.format))
+        print()
+    return 0

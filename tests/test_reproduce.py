@@ -1,0 +1,68 @@
+"""``reproduce``: the paper's tables from records, ours beside the paper's, never mixing worlds."""
+import json
+
+import pytest
+
+from masp_lite.cli import main
+from masp_lite.cli.reproduce import RESULTS
+from masp_lite.envs import get_scenario
+from masp_lite.evaluation import reproduce as rp
+
+
+def _rec(method, scenario, steps=10.0, world=None, **extra):
+    return {"method": method, "scenario": scenario, "world": world or get_scenario(scenario).world,
+            "seeds": [0], "episodes_per_seed": 1, "sr": {"mean": 1.0, "std": 0.0},
+            "steps": {"mean": steps, "std": 1.0}, "cr": {"mean": 0.1, "std": 0.0},
+            "decision_ms": {"mean": 1.0, "std": 0.0}, **extra}
+
+
+def test_tables_from_the_committed_records_show_ours_and_the_papers():
+    records = rp.load_records(RESULTS)
+    text = rp.render(rp.build("mpe", records), "text")
+    masp20 = rp.pick(records, "masp", "mpe-20")
+    assert f"{masp20['steps']['mean']:.2f} ({masp20['steps']['std']:.2f})" in text
+    assert "25.61 (2.10)" in text and "47.46 (5.93)" in text       # the paper's MASP, N = 20 and 50
+    assert "world: integration=" in text
+    latex = rp.render(rp.build("mpe", records, latex=True), "latex")
+    assert r"$\backslash$" in latex and r"\scriptsize{(2.10)}" in latex  # the paper's "\" and its stds
+    for name in rp.TABLES:
+        assert rp.render(rp.build(name, records), "markdown").count("\n") > 3
+
+
+def test_a_record_from_another_world_is_never_used():
+    other = {"integration": "velocity_first", "landmark_spawn": "central"}
+    if get_scenario("mpe-20").world == other:
+        other = {"integration": "mpe2", "landmark_spawn": "whole"}
+    records = [_rec("h-greedy", "mpe-20", 12.34, world=other)]
+    assert rp.pick(records, "h-greedy", "mpe-20") is None
+    assert "12.34" not in rp.render(rp.build("mpe", records), "text")
+    records.append(_rec("h-greedy", "mpe-20", 23.45))
+    assert "23.45 (1.00)" in rp.render(rp.build("mpe", records), "text")
+
+
+def test_options_and_duplicates():
+    records = [_rec("masp", "mpe-5", 9.0, method_options={"decode": "hungarian"})]
+    assert rp.pick(records, "masp", "mpe-5") is None              # a diagnostic, not the method
+    records += [_rec("masp", "mpe-5", 8.0), _rec("masp", "mpe-5", 8.5)]
+    with pytest.raises(ValueError, match="expected one"):
+        rp.pick(records, "masp", "mpe-5")
+    with pytest.raises(ValueError, match="unknown table"):
+        rp.build("nope", [])
+
+
+def test_evaluate_records_asks_for_every_registered_method(monkeypatch):
+    calls = []
+    monkeypatch.setattr(rp, "evaluate", lambda m, sc, **kw: calls.append((m, sc, kw["episodes"])) or _rec(m, sc))
+    records = rp.evaluate_records("mpe-varying", episodes=4)
+    assert {c[0] for c in calls} >= {"h-orca", "h-rrtstar", "h-voronoi", "masp", "h-bottleneck"}
+    assert "mappo" not in {c[0] for c in calls} and {c[2] for c in calls} == {4}
+    assert len(records) == len(calls)
+
+
+def test_cli(tmp_path, capsys):
+    assert main(["reproduce", "--table", "mpe-varying", "--format", "text"]) == 0
+    assert "40.68 (3.37)" in capsys.readouterr().out
+    (tmp_path / "r.json").write_text(json.dumps(_rec("masp", "mpe-20to10", 21.0)))
+    assert main(["reproduce", "--table", "mpe-varying", "--records", str(tmp_path)]) == 0
+    assert "21.00 (1.00)" in capsys.readouterr().out
+    assert main(["reproduce", "--records", str(tmp_path / "missing")]) == 2
