@@ -135,3 +135,19 @@ def test_bottleneck_minimises_the_longest_trip_then_the_total():
             trips = torch.stack([d[i, j] for i, j in mine])
             assert abs(float(trips.max()) - best[0]) < 1e-9 and abs(float(trips.sum()) - best[1]) < 1e-9
     assert (bottleneck(a, goals, agent_mask=torch.zeros(20, 6, dtype=torch.bool)) == -1).all()
+
+
+def test_sequential_keeps_goals_until_reached_and_hands_on_the_rest():
+    from masp_lite.algos.assignment import sequential
+    a = torch.tensor([[[0.0, 0.0], [5.0, 0.0]]])
+    g = torch.tensor([[[0.1, 0.0], [5.1, 0.0], [9.0, 0.0], [-3.0, 0.0]]])
+    avail = torch.ones(1, 4, dtype=torch.bool)
+    first = sequential(a, g, None, avail)
+    assert first.tolist() == [[0, 1]]                                      # Hungarian over all four
+    a2 = torch.tensor([[[8.0, 0.0], [-2.0, 0.0]]])                         # both moved far away
+    assert sequential(a2, g, None, avail, current=first).tolist() == [[0, 1]]  # goals kept, not re-solved
+    reached = torch.tensor([[True, False, False, False]])
+    nxt = sequential(a2, g, None, ~reached, current=first)
+    assert nxt.tolist() == [[2, 1]]               # agent 0 reached its goal: the nearest goal nobody holds
+    gone = torch.tensor([[True, False]])
+    assert sequential(a2, g, gone, ~reached, current=nxt).tolist() == [[2, -1]]

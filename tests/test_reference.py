@@ -128,3 +128,35 @@ def test_h_capt_and_h_bottleneck_are_h_greedy_with_another_assignment():
     assert steps(logs["h-bottleneck"]).mean() < steps(logs["h-greedy"]).mean()  # the longest trip sets Steps
     with pytest.raises(ValueError, match="cost"):
         make_policy("h-greedy", w, cost="max")
+
+
+def test_sequential_team_protocol_keeps_goals_after_the_shrink_until_reached():
+    w = make("mpe-20to10", num_envs=3, seed=2)
+    obs = w.reset(seed=2)
+    pol = make_policy("h-greedy", w, team_protocol="sequential")
+    plain = make_policy("h-greedy", w)
+    pol.reset(obs), plain.reset(obs)
+    changed = 0
+    for _ in range(w.horizon):
+        before = None if pol.assignment is None else pol.assignment.clone()
+        reached_before = obs["reached"].clone()
+        act = pol.act(obs)
+        if not bool(obs["alive"].all()):                      # after the shrink
+            assert before is not None
+            held = (before >= 0) & obs["alive"]
+            goal_reached = torch.gather(reached_before, 1, before.clamp(min=0)) & held
+            kept = held & ~goal_reached & (pol.assignment == before)
+            moved = held & ~goal_reached & (pol.assignment != before)
+            assert not bool(moved.any()) or t_first_shrink(obs, w)  # only the one fresh assignment at the change
+            changed += int(kept.sum())
+        else:
+            assert torch.equal(act, plain.act(obs))             # before the shrink: the plain assignment
+        obs, _ = w.step(act)
+    assert changed > 0
+    with pytest.raises(ValueError, match="team_protocol"):
+        make_policy("h-orca", w, team_protocol="greedy")
+
+
+def t_first_shrink(obs, w):
+    """True at the first decision after the team change (the one fresh assignment)."""
+    return bool((obs["t"] == w.scenario.change_step).all())

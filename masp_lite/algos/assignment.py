@@ -36,7 +36,8 @@ import torch
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-__all__ = ["hungarian", "hungarian_random_subset", "bottleneck", "assignment_cost", "distance_matrix", "check_power"]
+__all__ = ["hungarian", "hungarian_random_subset", "bottleneck", "sequential", "assignment_cost", "distance_matrix",
+           "check_power"]
 
 
 def _as_numpy(x, name: str, ndim: int) -> np.ndarray:
@@ -214,6 +215,32 @@ def bottleneck(agent_pos, goal_pos, agent_mask=None, goal_mask=None) -> torch.Te
         r, c = _bottleneck_one(cdist(a[b, rows], g[b, cols]))
         out[b, rows[r]] = cols[c]
     return torch.from_numpy(out).to(device)
+
+
+def sequential(agent_pos, goal_pos, agent_mask, goal_mask, current=None) -> torch.Tensor:
+    """Keep each agent's goal until it is reached; give the free agents the goals nobody holds.
+
+    The paper's account of a centralized assignment when the team shrinks (section
+    "Goal Matcher": "we need to first assign a part of the goals, and then assign the
+    remaining goals"): ``current`` ``None`` is the first assignment, :func:`hungarian` of
+    the alive agents over the available goals (``goal_mask``, e.g. not reached yet); with
+    ``current`` (B, N) an alive agent keeps a goal that is still available, and the agents
+    without one (theirs reached, or none) are assigned by :func:`hungarian` to the available
+    goals no kept agent holds — so a goal left over goes to an agent once it has reached
+    its own.
+    """
+    if current is None:
+        return hungarian(agent_pos, goal_pos, agent_mask, goal_mask)
+    a, g, am, gm, device = _check(agent_pos, goal_pos, agent_mask, goal_mask)
+    cur = _as_numpy(current, "current (B, N)", 2).astype(np.int64)
+    if cur.shape != am.shape:
+        raise ValueError(f"current: expected shape {am.shape}, got {cur.shape}")
+    keep = am & (cur >= 0) & np.take_along_axis(gm, np.clip(cur, 0, None), axis=1)
+    held = np.zeros_like(gm)
+    rows, cols = np.nonzero(keep)
+    held[rows, cur[rows, cols]] = True
+    free = _solve(a, g, am & ~keep, gm & ~held)
+    return torch.from_numpy(np.where(keep, cur, free)).to(device)
 
 
 def assignment_cost(agent_pos, goal_pos, assignment, power: float = 1.0) -> torch.Tensor:

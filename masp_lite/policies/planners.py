@@ -8,7 +8,10 @@ agent to its goal. All three share :class:`HungarianPlanner`:
   period): :func:`masp_lite.algos.assignment.hungarian` of the alive agents to all
   landmarks for a fixed team (success is judged with every landmark covered at the end);
   for varying teams the paper's rule, "a random subset of unreached goals matching the
-  agent count at each global step" (:func:`~masp_lite.algos.assignment.hungarian_random_subset`).
+  agent count at each global step" (:func:`~masp_lite.algos.assignment.hungarian_random_subset`);
+  ``team_protocol="sequential"`` takes the paper's other account instead (assign once
+  when the team shrinks, hand on leftover goals as agents reach theirs;
+  :class:`~masp_lite.policies.reference.TeamAssignment`).
   An agent left without a goal (more agents than unreached landmarks) holds its position.
 * **Planning**, in the subclass's :meth:`~HungarianPlanner.desired_velocity`: ORCA every
   environment step; RRT* and Voronoi paths every global step (RRT* also when blocked),
@@ -27,11 +30,11 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..algos.assignment import hungarian, hungarian_random_subset
 from ..planners.controllers import MAX_SPEED, arrive_velocity, track_path, velocity_to_action
 from ..planners.orca import orca_velocities
 from ..planners.rrt_star import plan_rrt_star, segments_blocked
 from ..planners.voronoi import plan_voronoi
+from .reference import TeamAssignment
 
 __all__ = ["HungarianPlanner", "HOrca", "HRRTStar", "HVoronoi", "split_collisions", "GLOBAL_STEP"]
 
@@ -49,33 +52,29 @@ class HungarianPlanner:
     #: Planner parameters accepted as keyword options, with their defaults.
     OPTIONS: dict = {}
 
-    def __init__(self, world, seed: int = 0, **options):
+    def __init__(self, world, seed: int = 0, team_protocol: str = "random_subset", **options):
         unknown = sorted(set(options) - set(self.OPTIONS))
         if unknown:
             raise ValueError(f"{type(self).__name__}: unknown option(s) {unknown}; expected some of "
-                             f"{sorted(self.OPTIONS) + ['seed']}")
+                             f"{sorted(self.OPTIONS) + ['seed', 'team_protocol']}")
         if getattr(world.scenario, "kind", "particle") != "particle":
             raise ValueError(f"{type(self).__name__}: expected a particle world (mpe-*), "
                              f"got scenario {world.scenario.name!r}")
         self.world, self.scenario, self.seed = world, world.scenario, int(seed)
         self.opt = {**self.OPTIONS, **{k: type(self.OPTIONS[k])(v) for k, v in options.items()}}
+        self.team = TeamAssignment(team_protocol, bool(world.scenario.varying), seed=self.seed)
         self.goal_index = None
 
     # ------------------------------------------------------------ assignment
     def reset(self, obs) -> None:
-        self._gen = torch.Generator().manual_seed(self.seed)
+        self.team.reset()
         self.goal_index = None
         self.reset_planner(obs)
 
     def assign(self, obs) -> np.ndarray:
         """Goal index per agent (B, N), ``-1`` for none: the paper's (H) assignment."""
-        unreached = ~obs["reached"]
-        if self.scenario.varying:
-            idx = hungarian_random_subset(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached,
-                                          generator=self._gen)
-        else:
-            idx = hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"])
-        return _np(idx)
+        current = None if self.goal_index is None else torch.from_numpy(self.goal_index)
+        return _np(self.team.assign(obs, current))
 
     @property
     def assignment(self) -> torch.Tensor | None:

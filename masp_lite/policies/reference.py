@@ -22,15 +22,68 @@ import math
 
 import torch
 
-from ..algos.assignment import bottleneck, check_power, hungarian
+from ..algos.assignment import bottleneck, check_power, hungarian, hungarian_random_subset, sequential
 from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
 from ..planners.controllers import velocity_to_action  # the controller every planner shares
 
-__all__ = ["RandomPolicy", "HungarianGreedy", "capt", "min_max", "COSTS", "velocity_to_action", "braking_speed",
+__all__ = ["RandomPolicy", "HungarianGreedy", "TeamAssignment", "TEAM_PROTOCOLS", "capt", "min_max", "COSTS",
+           "velocity_to_action", "braking_speed",
            "MAX_SPEED"]
 
 COSTS = ("sum", "bottleneck")
 """What h-greedy's assignment minimises: the total of ``distance ** power``, or the longest trip."""
+
+TEAM_PROTOCOLS = ("resolve", "random_subset", "sequential")
+"""How an "(H)" method assigns goals once a team has shrunk (more landmarks than agents):
+``resolve`` — every global step over all unreached landmarks (h-greedy's default);
+``random_subset`` — every global step over a random subset of the unreached landmarks, as
+many as agents (the paper's section "Varying Team Sizes"; the planners' default);
+``sequential`` — once when the team shrinks, then a leftover landmark goes to an agent
+only when it has reached its own (the paper's section "Goal Matcher":
+:func:`~masp_lite.algos.assignment.sequential`)."""
+
+
+class TeamAssignment:
+    """The "(H)" goal assignment of a world batch under one of :data:`TEAM_PROTOCOLS`.
+
+    ``assign(obs, current)`` -> (B, N) goal indices. Before a team shrinks, and for fixed
+    teams, it is the plain assignment (over the unreached landmarks when the team can
+    change, since success counts landmarks ever reached); ``cost``/``power`` as h-greedy's.
+    """
+
+    def __init__(self, protocol: str, varying: bool, cost: str = "sum", power: float = 1.0, seed: int = 0):
+        if protocol not in TEAM_PROTOCOLS:
+            raise ValueError(f"team_protocol: expected one of {list(TEAM_PROTOCOLS)}, got {protocol!r}")
+        self.protocol, self.varying, self.cost, self.power, self.seed = protocol, varying, cost, power, seed
+        self.reset()
+
+    def reset(self) -> None:
+        self.generator = torch.Generator().manual_seed(self.seed)
+        self._sequential = None  # (B,) bool: worlds whose post-shrink assignment has been made
+
+    def _plain(self, obs, goal_mask):
+        if self.cost == "bottleneck":
+            return bottleneck(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask)
+        return hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask, self.power)
+
+    def assign(self, obs, current=None) -> torch.Tensor:
+        if not self.varying:
+            return self._plain(obs, None)
+        unreached = ~obs["reached"]
+        if self.protocol == "random_subset":
+            return hungarian_random_subset(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached,
+                                           generator=self.generator)
+        plain = self._plain(obs, unreached)
+        if self.protocol == "resolve":
+            return plain
+        shrunk = ~obs["alive"].all(-1)
+        started = torch.zeros_like(shrunk) if self._sequential is None else self._sequential
+        first = sequential(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached)
+        later = first if current is None else \
+            sequential(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached, current)
+        self._sequential = shrunk
+        out = torch.where((shrunk & started).unsqueeze(-1), later, first)
+        return torch.where(shrunk.unsqueeze(-1), out, plain)
 
 #: Terminal speed under a constant action: ``v = (1 - damping) v + s dt / m`` -> 2 m/s in MPE.
 MAX_SPEED = PHYSICS["sensitivity"] * PHYSICS["dt"] / PHYSICS["mass"] / PHYSICS["damping"]
@@ -99,7 +152,8 @@ class HungarianGreedy:
     distance, the "(H)" baselines' and the default; 2: total squared distance, shorter
     longest trips, see :func:`~masp_lite.algos.assignment.hungarian`). ``cost="bottleneck"``
     takes the min–max assignment instead (:func:`~masp_lite.algos.assignment.bottleneck`:
-    the longest trip as short as possible, then the least total). A world whose team
+    the longest trip as short as possible, then the least total). ``team_protocol``: how a
+    shrunk team is assigned (:data:`TEAM_PROTOCOLS`; default ``resolve``). A world whose team
     has just shrunk is reassigned at once rather than at its next global step, so the
     survivors take over the dropped agents' landmarks without delay. The current assignment
     is kept in ``self.assignment`` (B, N), ``-1`` for none, for playback.
@@ -126,9 +180,11 @@ class HungarianGreedy:
             return DroneHungarianGreedy(world, *args, **options)
         return super().__new__(cls)
 
-    def __init__(self, world, global_step: int = 3, power: float = 1.0, cost: str = "sum", **options):
+    def __init__(self, world, global_step: int = 3, power: float = 1.0, cost: str = "sum",
+                 team_protocol: str = "resolve", **options):
         if options:
-            raise ValueError(f"h-greedy: unknown option(s) {sorted(options)}; expected global_step, power, cost")
+            raise ValueError(f"h-greedy: unknown option(s) {sorted(options)}; expected global_step, power, cost, "
+                             "team_protocol")
         if isinstance(global_step, bool) or not isinstance(global_step, int) or global_step < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
         if cost not in COSTS:
@@ -138,19 +194,18 @@ class HungarianGreedy:
         self.power = check_power(power)
         self.cost = cost
         self.varying = bool(world.scenario.varying)
+        self.team = TeamAssignment(team_protocol, self.varying, cost, self.power)
         self.assignment = None
         self._alive = None
 
     def reset(self, obs) -> None:
         self.assignment = None
         self._alive = None
+        self.team.reset()
 
     def assign(self, obs) -> torch.Tensor:
         """The assignment for the current observation (see the class docstring)."""
-        goal_mask = ~obs["reached"] if self.varying else None
-        if self.cost == "bottleneck":
-            return bottleneck(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask)
-        return hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask, self.power)
+        return self.team.assign(obs, self.assignment)
 
     def act(self, obs) -> torch.Tensor:
         t = obs["t"]
