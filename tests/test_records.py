@@ -66,16 +66,17 @@ def test_record_re_evaluates_identically(path, rec, monkeypatch):
 
 
 def _training_manifests():
-    return sorted((ROOT / "results" / "training").glob("*.manifest.json"))
+    return sorted((ROOT / "results" / "training").rglob("*.manifest.json"))
 
 
-@pytest.mark.parametrize("path", _training_manifests(), ids=lambda p: p.name)
+@pytest.mark.parametrize("path", _training_manifests(), ids=lambda p: str(p.relative_to(ROOT / "results")))
 def test_training_history_names_its_weights_and_curves(path):
     """Each kept run's weights hash to its manifest (shipped ones in the package) and its curves exist."""
     from masp_lite.weights import HERE, load_weights, read_manifest
     m = json.loads(path.read_text())
     shipped = read_manifest().get(m["scenario"], {})
-    weights = HERE / m["file"] if shipped.get("history", "").endswith(path.name) else path.parent / m["file"]
+    shipped_here = shipped.get("history") == str(path.relative_to(ROOT))
+    weights = HERE / m["file"] if shipped_here else path.parent / m["file"]
     assert sha256(weights) == m["sha256"]
     nets, rec = load_weights(weights, scenario=m["scenario"])
     assert nets.arch == m["arch"] and rec["scenario"] == m["scenario"]
