@@ -27,7 +27,7 @@ def override_types() -> dict[str, object]:
 def split_sets(items, method: str) -> tuple[dict, dict]:
     """``KEY=VALUE`` strings -> (scenario overrides, method options); a key that is neither fails."""
     factory = get_factory(method)
-    named, var_kw = method_options(factory)
+    _, var_kw = method_options(factory)
     options = option_types(factory)
     targets = {"scenario override": override_types(), f"option of method {method!r}": options}
     if var_kw:  # the method checks the names of its **options itself
