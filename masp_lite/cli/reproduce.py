@@ -2,9 +2,9 @@
 
 Prints the paper's tables with ours beside the paper's (:mod:`masp_lite.evaluation.reproduce`):
 from the records in ``results/`` (seconds), or ``--evaluate`` — every registered method of
-the table with its shipped weights, 3 seeds × 100 episodes (about 40 minutes for "mpe" on
-one core, most of it the planners on mpe-50) — or ``--quick``, 3 seeds × 4 episodes (a few
-minutes; "mpe" took 53 s on one core), for a first look and for tests.
+the table with its shipped weights, 3 seeds × 100 episodes (about 30 minutes for "mpe" on
+one core, most of it the planners on mpe-50) — or ``--quick``, 3 seeds × 4 episodes (53 s
+for "mpe" on one core), for a first look and for tests.
 """
 from __future__ import annotations
 
