@@ -196,5 +196,6 @@ def test_against_paper_uses_the_metrics_the_paper_reports():
     assert lines[0].endswith("-> ours better") and lines[1].endswith("-> paper better") and lines[2].endswith("a tie")
     assert "paper  47.460" in lines[1] and PAPER_MASP["mpe-50"]["steps"] == 47.46
     varying = against_paper({"scenario": "mpe-20to10", "sr": {"mean": 1.0}, "steps": {"mean": 20.0}, "cr": {"mean": 0}})
-    assert len(varying) == 1 and varying[0].startswith("Steps") and varying[0].endswith("-> ours better")
+    assert len(varying) == 3 and varying[1].startswith("Steps") and varying[1].endswith("-> ours better")
+    assert PAPER_MASP["mpe-20to10"] == {"steps": 22.38, "sr": 1.00, "cr": 0.16}   # the paper's varying-team table
     assert against_paper({"scenario": "drone-5", "sr": {"mean": 1.0}}) == []

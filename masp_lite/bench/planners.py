@@ -28,12 +28,13 @@ import numpy as np
 import torch
 
 from ..envs import make
+from ..evaluation.paper import PAPER
 from ..policies import get_factory, make_policy, method_options
 
 __all__ = ["add_arguments", "run", "step_times", "collision_split", "PAPER_MS"]
 
 #: The paper's per-step time at 50 agents (ms, mean and std; Table "per-step time").
-PAPER_MS = {"h-orca": (39.0, 6.0), "h-rrtstar": (456.0, 10.0), "h-voronoi": (44.0, 5.0)}
+PAPER_MS = {m: tuple(map(float, PAPER["per-step-time"][m])) for m in ("h-orca", "h-rrtstar", "h-voronoi")}
 METHODS = ["h-greedy", "h-orca", "h-rrtstar", "h-voronoi"]
 
 

@@ -7,8 +7,8 @@ from :func:`~masp_lite.evaluation.evaluate` records, the same way for every pair
   CR). A Steps mean of ``None`` means no episode ever covered every landmark (the paper's
   backslash): worse than any number;
 * :func:`verdict` — one line per metric: both means and which one is better;
-* :data:`PAPER_MASP` — MASP's means as the paper reports them (Table I for fixed teams;
-  Steps only for the team changes, as chapter 00 quotes them);
+* :data:`PAPER_MASP` — MASP's means as the paper reports them (its tables "MPE" and "MPE,
+  varying team size", from :mod:`.paper`);
 * :func:`against_paper` — :func:`verdict` of a record against :data:`PAPER_MASP` for its
   scenario, on the metrics the paper reports there.
 
@@ -17,16 +17,13 @@ plain means (``{"sr": 0.99, ...}``).
 """
 from __future__ import annotations
 
+from .paper import PAPER
+
 __all__ = ["PAPER_MASP", "HIGHER_IS_BETTER", "better", "verdict", "against_paper"]
 
-#: MASP's means in the paper: Table I (fixed teams) and the team-change Steps.
-PAPER_MASP = {
-    "mpe-5": {"steps": 7.54, "sr": 1.00, "cr": 0.47},
-    "mpe-20": {"steps": 25.61, "sr": 1.00, "cr": 0.44},
-    "mpe-50": {"steps": 47.46, "sr": 0.99, "cr": 0.23},
-    "mpe-20to10": {"steps": 22.38},
-    "mpe-50to20": {"steps": 46.49},
-}
+#: MASP's means in the paper (:data:`masp_lite.evaluation.paper.PAPER`), by scenario and metric.
+PAPER_MASP = {sc: {k: v[0] for k, v in cells.items() if v[0] is not None}
+              for table in ("mpe", "mpe-varying") for (sc, method), cells in PAPER[table].items() if method == "masp"}
 
 #: Metric -> whether a higher mean is better.
 HIGHER_IS_BETTER = {"sr": True, "steps": False, "cr": False}

@@ -22,6 +22,8 @@ from pathlib import Path
 from ..envs import get_scenario, world_name
 from ..policies import METHODS
 from .evaluate import evaluate
+from .paper import PAPER
+from .tables import cell, render_rows
 
 __all__ = ["Table", "TABLES", "PAPER", "load_records", "pick", "evaluate_records", "render", "build"]
 
@@ -30,59 +32,6 @@ _OURS_ONLY = ("h-greedy", "h-capt", "h-bottleneck")
 _LABEL = {"h-orca": "(H)ORCA", "h-rrtstar": "(H)RRT*", "h-voronoi": "(H)Voronoi", "h-mappo": "(H)MAPPO",
           "mappo": "MAPPO", "darl1n": "DARL1N", "htamp": "HTAMP", "mage-x": "MAGE-X", "masp": "MASP",
           "h-greedy": "h-greedy", "h-capt": "h-capt", "h-bottleneck": "h-bottleneck"}
-
-
-def _p(*cells):
-    """Paper cells ``(steps, std, sr, std, cr, std)`` -> ``{"steps": (m, s) or None, ...}``."""
-    s, ss, r, rs, c, cs = cells
-    return {"steps": (s, ss), "sr": (r, rs), "cr": (c, cs)}
-
-
-#: The paper's numbers: table -> (scenario, method) -> metric -> (mean, std); Steps None = "\".
-PAPER = {
-    "mpe": {
-        ("mpe-5", "h-orca"): _p(16.38, 0.53, 0.72, 0.01, 0.57, 0.03),
-        ("mpe-5", "h-rrtstar"): _p(7.58, 1.49, 0.99, 0.01, 3.41, 0.14),
-        ("mpe-5", "h-voronoi"): _p(8.86, 1.27, 0.98, 0.01, 3.44, 0.25),
-        ("mpe-5", "h-mappo"): _p(8.04, 1.53, 1.00, 0.00, 0.42, 0.02),
-        ("mpe-5", "mappo"): _p(8.69, 1.24, 1.00, 0.00, 1.32, 0.38),
-        ("mpe-5", "darl1n"): _p(None, None, 0.74, 0.02, 2.80, 0.53),
-        ("mpe-5", "htamp"): _p(None, None, 0.65, 0.05, 1.63, 0.43),
-        ("mpe-5", "mage-x"): _p(14.75, 0.60, 1.00, 0.00, 0.45, 0.02),
-        ("mpe-5", "masp"): _p(7.54, 1.37, 1.00, 0.00, 0.47, 0.01),
-        ("mpe-20", "h-orca"): _p(34.28, 3.22, 0.95, 0.03, 0.49, 0.04),
-        ("mpe-20", "h-rrtstar"): _p(26.86, 2.27, 0.99, 0.01, 1.69, 0.05),
-        ("mpe-20", "h-voronoi"): _p(28.72, 2.68, 1.00, 0.00, 1.80, 0.03),
-        ("mpe-20", "h-mappo"): _p(27.43, 2.49, 1.00, 0.00, 0.75, 0.05),
-        ("mpe-20", "mappo"): _p(None, None, 0.71, 0.02, 2.53, 1.02),
-        ("mpe-20", "darl1n"): _p(None, None, 0.62, 0.03, 3.22, 1.23),
-        ("mpe-20", "htamp"): _p(None, None, 0.05, 0.01, 1.54, 0.05),
-        ("mpe-20", "mage-x"): _p(None, None, 0.75, 0.02, 1.78, 0.14),
-        ("mpe-20", "masp"): _p(25.61, 2.10, 1.00, 0.00, 0.44, 0.03),
-        ("mpe-50", "h-orca"): _p(60.66, 4.76, 0.97, 0.01, 0.30, 0.02),
-        ("mpe-50", "h-rrtstar"): _p(58.68, 3.89, 0.99, 0.01, 1.39, 0.14),
-        ("mpe-50", "h-voronoi"): _p(57.88, 5.43, 0.99, 0.01, 1.31, 0.42),
-        ("mpe-50", "h-mappo"): _p(51.88, 4.06, 0.99, 0.01, 0.42, 0.75),
-        ("mpe-50", "mappo"): _p(None, None, 0.01, 0.01, 0.78, 0.26),
-        ("mpe-50", "darl1n"): _p(None, None, 0.49, 0.02, 1.14, 0.34),
-        ("mpe-50", "htamp"): _p(None, None, 0.02, 0.01, 1.35, 0.21),
-        ("mpe-50", "mage-x"): _p(None, None, 0.23, 0.01, 1.69, 0.37),
-        ("mpe-50", "masp"): _p(47.46, 5.93, 0.99, 0.01, 0.23, 0.01),
-    },
-    "mpe-varying": {
-        ("mpe-20to10", "h-orca"): _p(43.64, 3.86, 0.89, 0.01, 0.18, 0.02),
-        ("mpe-20to10", "h-rrtstar"): _p(40.68, 3.37, 0.92, 0.01, 0.72, 0.14),
-        ("mpe-20to10", "h-voronoi"): _p(40.18, 3.41, 0.93, 0.01, 0.86, 0.13),
-        ("mpe-20to10", "masp"): _p(22.38, 3.04, 1.00, 0.00, 0.16, 0.03),
-        ("mpe-50to20", "h-orca"): _p(None, None, 0.86, 0.01, 0.15, 0.03),
-        ("mpe-50to20", "h-rrtstar"): _p(89.18, 4.88, 0.91, 0.01, 0.56, 0.05),
-        ("mpe-50to20", "h-voronoi"): _p(88.73, 4.27, 0.91, 0.02, 0.67, 0.03),
-        ("mpe-50to20", "masp"): _p(46.49, 4.49, 1.00, 0.00, 0.15, 0.01),
-    },
-    #: per-step time at N = 50, milliseconds (mean, std); the paper names the planners without "(H)"
-    "per-step-time": {"h-orca": (39, 6), "h-rrtstar": (456, 10), "h-voronoi": (44, 5), "mappo": (13, 4),
-                      "darl1n": (16, 3), "htamp": (14, 3), "mage-x": (20, 5), "masp": (14, 2)},
-}
 
 
 @dataclass
@@ -138,15 +87,6 @@ def pick(records, method: str, scenario: str) -> dict | None:
     return found[0] if found else None
 
 
-def _cell(stat, latex: bool) -> str:
-    if stat is None:
-        return "—"
-    mean, std = (stat["mean"], stat["std"]) if isinstance(stat, dict) else stat
-    if mean is None:
-        return r"$\backslash$" if latex else "\\"
-    return f"{mean:.2f}\\scriptsize{{({std:.2f})}}" if latex else f"{mean:.2f} ({std:.2f})"
-
-
 def _metric_table(name, title, scenarios, columns, records, latex):
     head = ["Agents", "Metric", "", *(_LABEL[c] for c in columns)]
     rows = []
@@ -155,8 +95,8 @@ def _metric_table(name, title, scenarios, columns, records, latex):
             ours = [pick(records, c, sc) for c in columns]
             paper = [PAPER[name].get((sc, c)) for c in columns]
             rows.append([sc if i == 0 else "", label, "ours",
-                         *(_cell(r[key], latex) if r else "—" for r in ours)])
-            rows.append(["", "", "paper", *(_cell(p[key], latex) if p else "" for p in paper)])
+                         *(cell(r[key], latex) if r else "—" for r in ours)])
+            rows.append(["", "", "paper", *(cell(p[key], latex) if p else "" for p in paper)])
     return Table(name, title, get_scenario(scenarios[0]).world, head, rows)
 
 
@@ -184,8 +124,8 @@ def table_time(records, latex=False) -> Table:
     for c in columns:
         found = [r for r in records if r["method"] == c and r["scenario"] == "mpe-50" and r.get("num_envs") == 1
                  and r.get("world", world) == world]
-        ours.append(_cell(found[0]["decision_ms"], latex) if found else "—")
-    paper = [_cell(PAPER["per-step-time"][c], latex) for c in columns]
+        ours.append(cell(found[0]["decision_ms"], latex) if found else "—")
+    paper = [cell(PAPER["per-step-time"][c], latex) for c in columns]
     head = ["", *(_LABEL[c] for c in columns)]
     return Table("per-step-time", "Per-step time (ms), N = 50", get_scenario("mpe-50").world, head,
                  [["ours", *ours], ["paper", *paper]])
@@ -215,21 +155,8 @@ def build(name: str, records, latex: bool = False) -> Table:
 
 def render(table: Table, fmt: str = "markdown") -> str:
     """The table as ``text``, ``markdown`` or ``latex``, with its title and world on top."""
-    if fmt not in ("text", "markdown", "latex"):
-        raise ValueError(f"format: expected text, markdown or latex, got {fmt!r}")
     caption = f"{table.title} — world: {world_name(table.world)}"
+    body = render_rows(table.head, table.rows, fmt)
     if fmt == "latex":
-        esc = lambda c: (c.replace("_", r"\_").replace("↓", r"$\downarrow$").replace("↑", r"$\uparrow$")  # noqa: E731
-                         .replace("—", "--"))
-        lines = [r"\begin{tabular}{l" + "c" * (len(table.head) - 1) + "}", r"\toprule",
-                 " & ".join(map(esc, table.head)) + r" \\",
-                 r"\midrule", *(" & ".join(map(esc, row)) + r" \\" for row in table.rows), r"\bottomrule",
-                 r"\end{tabular}", f"% {caption}"]
-        return "\n".join(lines)
-    widths = [max(len(str(c)) for c in col) for col in zip(table.head, *table.rows)]
-    if fmt == "text":
-        body = ["  ".join(str(c).ljust(w) for c, w in zip(row, widths)).rstrip() for row in [table.head, *table.rows]]
-        return "\n".join([caption, *body])
-    line = lambda row: "| " + " | ".join(str(c).ljust(w) for c, w in zip(row, widths)) + " |"  # noqa: E731
-    return "\n".join([f"**{caption}**", "", line(table.head), "|" + "|".join("-" * (w + 2) for w in widths) + "|",
-                      *map(line, table.rows)])
+        return f"{body}\n% {caption}"
+    return f"{caption}\n{body}" if fmt == "text" else f"**{caption}**\n\n{body}"

@@ -5,24 +5,32 @@ backslash when no episode reached SR 1 (the paper's rule). Plain text, markdown 
 """
 from __future__ import annotations
 
-__all__ = ["format_table"]
+__all__ = ["format_table", "cell", "render_rows"]
 
 _METRICS = (("steps", "Steps", r"$\downarrow$", "↓"), ("sr", "SR", r"$\uparrow$", "↑"),
             ("cr", "CR", r"$\downarrow$", "↓"))
 
 
-def _cell(stat: dict, latex: bool) -> str:
-    """"mean (std)" with 2 decimals; a missing mean is the paper's backslash (only Steps has one)."""
-    if stat.get("mean") is None:
+def cell(stat, latex: bool = False) -> str:
+    """"mean (std)" with 2 decimals from ``{"mean", "std"}`` or ``(mean, std)``; a missing mean is
+    the paper's backslash (only Steps has one); no statistic at all (``None``) is "—"."""
+    if stat is None:
+        return "—"
+    mean, std = (stat.get("mean"), stat.get("std")) if isinstance(stat, dict) else stat
+    if mean is None:
         return r"$\backslash$" if latex else "\\"
     if latex:
-        return f"{stat['mean']:.2f}\\scriptsize{{({stat['std']:.2f})}}"
-    return f"{stat['mean']:.2f} ({stat['std']:.2f})"
+        return f"{mean:.2f}\\scriptsize{{({std:.2f})}}"
+    return f"{mean:.2f} ({std:.2f})"
 
 
-def _render(head: list[str], body: list[list[str]], fmt: str) -> str:
+def render_rows(head: list[str], body: list[list[str]], fmt: str) -> str:
+    """Rows of cells as ``markdown``, ``text`` (aligned columns) or ``latex`` (a ``tabular``)."""
+    if fmt not in ("markdown", "text", "latex"):
+        raise ValueError(f"format: expected markdown, text or latex, got {fmt!r}")
     if fmt == "latex":
-        esc = lambda c: c.replace("_", r"\_")  # noqa: E731
+        esc = lambda c: (c.replace("_", r"\_").replace("↓", r"$\downarrow$").replace("↑", r"$\uparrow$")  # noqa: E731
+                         .replace("—", "--"))
         lines = [r"\begin{tabular}{" + "l" * 2 + "c" * (len(head) - 2) + "}", r"\hline",
                  " & ".join(map(esc, head)) + r" \\", r"\hline"]
         lines += [" & ".join(map(esc, row)) + r" \\" for row in body]
@@ -53,17 +61,17 @@ def format_table(rows, fmt: str = "markdown", layout: str = "rows") -> str:
     try:
         if layout == "rows":
             head = ["Method", "Scenario", *map(name, _METRICS), "Decision (ms)"]
-            body = [[r["method"], r["scenario"], *(_cell(r[m[0]], latex) for m in _METRICS),
-                     _cell(r["decision_ms"], latex)] for r in rows]
+            body = [[r["method"], r["scenario"], *(cell(r[m[0]], latex) for m in _METRICS),
+                     cell(r["decision_ms"], latex)] for r in rows]
         else:
             methods = list(dict.fromkeys(r["method"] for r in rows))
             scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
-            cell = {(r["scenario"], r["method"]): r for r in rows}
+            by_key = {(r["scenario"], r["method"]): r for r in rows}
             head = ["Scenario", "Metric", *methods]
             body = [[sc if i == 0 else "", name(m),
-                     *(_cell(cell[sc, meth][m[0]], latex) if (sc, meth) in cell else "" for meth in methods)]
+                     *(cell(by_key[sc, meth][m[0]], latex) if (sc, meth) in by_key else "" for meth in methods)]
                     for sc in scenarios for i, m in enumerate(_METRICS)]
     except (KeyError, TypeError):
         raise ValueError("format_table: expected evaluate() records with method, scenario, "
                          "steps, sr, cr and decision_ms") from None
-    return _render(head, body, fmt)
+    return render_rows(head, body, fmt)

@@ -77,13 +77,12 @@ class TeamAssignment:
         if self.protocol == "resolve":
             return plain
         shrunk = ~obs["alive"].all(-1)
-        started = torch.zeros_like(shrunk) if self._sequential is None else self._sequential
-        first = sequential(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached)
-        later = first if current is None else \
-            sequential(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached, current)
+        started = shrunk & (torch.zeros_like(shrunk) if self._sequential is None else self._sequential)
         self._sequential = shrunk
-        out = torch.where((shrunk & started).unsqueeze(-1), later, first)
-        return torch.where(shrunk.unsqueeze(-1), out, plain)
+        if current is None or not bool(started.any()):  # no world past its first post-shrink assignment
+            return plain  # the first assignment after the shrink is the plain one over the unreached
+        later = sequential(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached, current)
+        return torch.where(started.unsqueeze(-1), later, plain)
 
 #: Terminal speed under a constant action: ``v = (1 - damping) v + s dt / m`` -> 2 m/s in MPE.
 MAX_SPEED = PHYSICS["sensitivity"] * PHYSICS["dt"] / PHYSICS["mass"] / PHYSICS["damping"]

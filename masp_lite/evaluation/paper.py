@@ -1,0 +1,62 @@
+"""The paper's numbers, typed in once: every table ``reproduce`` prints beside ours.
+
+Read from the paper's tables "MPE" (``tab: mpe``), "MPE, varying team size"
+(``tab: mpe_varying``) and "per-step time" (``tab: time_table``). :mod:`.reproduce`,
+:mod:`.claims` and the benchmarks read them from here.
+"""
+from __future__ import annotations
+
+__all__ = ["PAPER"]
+
+
+def _p(*cells):
+    """Paper cells ``(steps, std, sr, std, cr, std)`` -> ``{"steps": (m, s) or None, ...}``."""
+    s, ss, r, rs, c, cs = cells
+    return {"steps": (s, ss), "sr": (r, rs), "cr": (c, cs)}
+
+
+#: The paper's numbers: table -> (scenario, method) -> metric -> (mean, std); Steps None = "\".
+PAPER = {
+    "mpe": {
+        ("mpe-5", "h-orca"): _p(16.38, 0.53, 0.72, 0.01, 0.57, 0.03),
+        ("mpe-5", "h-rrtstar"): _p(7.58, 1.49, 0.99, 0.01, 3.41, 0.14),
+        ("mpe-5", "h-voronoi"): _p(8.86, 1.27, 0.98, 0.01, 3.44, 0.25),
+        ("mpe-5", "h-mappo"): _p(8.04, 1.53, 1.00, 0.00, 0.42, 0.02),
+        ("mpe-5", "mappo"): _p(8.69, 1.24, 1.00, 0.00, 1.32, 0.38),
+        ("mpe-5", "darl1n"): _p(None, None, 0.74, 0.02, 2.80, 0.53),
+        ("mpe-5", "htamp"): _p(None, None, 0.65, 0.05, 1.63, 0.43),
+        ("mpe-5", "mage-x"): _p(14.75, 0.60, 1.00, 0.00, 0.45, 0.02),
+        ("mpe-5", "masp"): _p(7.54, 1.37, 1.00, 0.00, 0.47, 0.01),
+        ("mpe-20", "h-orca"): _p(34.28, 3.22, 0.95, 0.03, 0.49, 0.04),
+        ("mpe-20", "h-rrtstar"): _p(26.86, 2.27, 0.99, 0.01, 1.69, 0.05),
+        ("mpe-20", "h-voronoi"): _p(28.72, 2.68, 1.00, 0.00, 1.80, 0.03),
+        ("mpe-20", "h-mappo"): _p(27.43, 2.49, 1.00, 0.00, 0.75, 0.05),
+        ("mpe-20", "mappo"): _p(None, None, 0.71, 0.02, 2.53, 1.02),
+        ("mpe-20", "darl1n"): _p(None, None, 0.62, 0.03, 3.22, 1.23),
+        ("mpe-20", "htamp"): _p(None, None, 0.05, 0.01, 1.54, 0.05),
+        ("mpe-20", "mage-x"): _p(None, None, 0.75, 0.02, 1.78, 0.14),
+        ("mpe-20", "masp"): _p(25.61, 2.10, 1.00, 0.00, 0.44, 0.03),
+        ("mpe-50", "h-orca"): _p(60.66, 4.76, 0.97, 0.01, 0.30, 0.02),
+        ("mpe-50", "h-rrtstar"): _p(58.68, 3.89, 0.99, 0.01, 1.39, 0.14),
+        ("mpe-50", "h-voronoi"): _p(57.88, 5.43, 0.99, 0.01, 1.31, 0.42),
+        ("mpe-50", "h-mappo"): _p(51.88, 4.06, 0.99, 0.01, 0.42, 0.75),
+        ("mpe-50", "mappo"): _p(None, None, 0.01, 0.01, 0.78, 0.26),
+        ("mpe-50", "darl1n"): _p(None, None, 0.49, 0.02, 1.14, 0.34),
+        ("mpe-50", "htamp"): _p(None, None, 0.02, 0.01, 1.35, 0.21),
+        ("mpe-50", "mage-x"): _p(None, None, 0.23, 0.01, 1.69, 0.37),
+        ("mpe-50", "masp"): _p(47.46, 5.93, 0.99, 0.01, 0.23, 0.01),
+    },
+    "mpe-varying": {
+        ("mpe-20to10", "h-orca"): _p(43.64, 3.86, 0.89, 0.01, 0.18, 0.02),
+        ("mpe-20to10", "h-rrtstar"): _p(40.68, 3.37, 0.92, 0.01, 0.72, 0.14),
+        ("mpe-20to10", "h-voronoi"): _p(40.18, 3.41, 0.93, 0.01, 0.86, 0.13),
+        ("mpe-20to10", "masp"): _p(22.38, 3.04, 1.00, 0.00, 0.16, 0.03),
+        ("mpe-50to20", "h-orca"): _p(None, None, 0.86, 0.01, 0.15, 0.03),
+        ("mpe-50to20", "h-rrtstar"): _p(89.18, 4.88, 0.91, 0.01, 0.56, 0.05),
+        ("mpe-50to20", "h-voronoi"): _p(88.73, 4.27, 0.91, 0.02, 0.67, 0.03),
+        ("mpe-50to20", "masp"): _p(46.49, 4.49, 1.00, 0.00, 0.15, 0.01),
+    },
+    # per-step time at N = 50, milliseconds (mean, std); the paper names the planners without "(H)"
+    "per-step-time": {"h-orca": (39, 6), "h-rrtstar": (456, 10), "h-voronoi": (44, 5), "mappo": (13, 4),
+                      "darl1n": (16, 3), "htamp": (14, 3), "mage-x": (20, 5), "masp": (14, 2)},
+}
