@@ -202,6 +202,31 @@ def _run_info(m: dict) -> dict:
     return {**{k: m[k] for k in _RUN_INFO}, **{k: m[k] for k in _RUN_EXTRA if k in m}}
 
 
+def _read_run(manifest, progress):
+    """``(scenario, run information, curves bytes or None)`` of one finished run."""
+    sm = json.loads(Path(manifest).read_text())
+    missing = [key for key in _RUN_INFO if key not in sm]
+    if missing:
+        raise ValueError(f"{manifest}: expected a run manifest; missing {missing}")
+    return sm.get("scenario"), _run_info(sm), Path(progress).read_bytes() if Path(progress).exists() else None
+
+
+def _earlier_runs(earlier):
+    """The stages of ``earlier`` (see :func:`ship_run`), oldest first, as :func:`_read_run` gives them."""
+    out = []
+    for item in earlier:
+        if isinstance(item, (str, Path)):  # a kept history: every stage, with its curves
+            history = json.loads(Path(item).read_text())
+            if "stages" not in history:
+                raise ValueError(f"{item}: expected a training history (SCENARIO-seedS.manifest.json)")
+            for st in history["stages"]:
+                curves = Path(item).parent / st["progress"]
+                out.append((st["scenario"], st["training"], curves.read_bytes() if curves.exists() else None))
+        else:
+            out.append(_read_run(*item))
+    return out
+
+
 def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dict | None = None,
              note: str | None = None) -> dict:
     """Keep a finished run: its history in ``history_dir``, its weights shipped or beside the history.
@@ -211,7 +236,8 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
     machine, final evaluation) and curves (``SCENARIO-seedS[.stageK].progress.csv``), from
     scratch to the last fine-tuning, plus ``evaluation`` (an ``evaluate()`` record) and a
     free-text ``note``. ``earlier``: the stages this run was fine-tuned from, oldest first,
-    each a pair of paths ``(manifest.json, progress.csv)`` of a finished run.
+    each a pair of paths ``(manifest.json, progress.csv)`` of a finished run, or the path of a
+    history this function kept before (``SCENARIO-seedS.manifest.json``: all its stages).
 
     With ``weights_dir`` (the source tree's ``masp_lite/weights/``) the weights become the
     shipped ``SCENARIO.pt`` there, with a slim entry in its ``manifest.json``; without it
@@ -225,17 +251,13 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
     rec = read_weights(run_dir / "weights.pt")
     name, seed = rec["scenario"], int(m["seed"])
     stem = f"{name}-seed{seed}"
+    runs = [*_earlier_runs(earlier), _read_run(run_dir / "manifest.json", run_dir / "progress.csv")]
     stages = []
-    for k, (stage_manifest, stage_progress) in enumerate([*earlier, (run_dir / "manifest.json",
-                                                                     run_dir / "progress.csv")], start=1):
-        sm = json.loads(Path(stage_manifest).read_text())
-        missing = [key for key in _RUN_INFO if key not in sm]
-        if missing:
-            raise ValueError(f"{stage_manifest}: expected a run manifest; missing {missing}")
-        target = f"{stem}.stage{k}.progress.csv" if k <= len(earlier) else f"{stem}.progress.csv"
-        if Path(stage_progress).exists():
-            atomic_write_bytes(history_dir / target, Path(stage_progress).read_bytes())
-        stages.append({"scenario": sm.get("scenario"), "training": _run_info(sm), "progress": target})
+    for k, (scenario, info, curves) in enumerate(runs, start=1):
+        target = f"{stem}.stage{k}.progress.csv" if k < len(runs) else f"{stem}.progress.csv"
+        if curves is not None:
+            atomic_write_bytes(history_dir / target, curves)
+        stages.append({"scenario": scenario, "training": info, "progress": target})
     data = (run_dir / "weights.pt").read_bytes()
     if weights_dir is None:
         file, target = f"{stem}.pt", history_dir / f"{stem}.pt"

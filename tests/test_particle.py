@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from masp_lite.envs import PHYSICS, SCENARIOS, ParticleWorld, make, scenario_names
+from masp_lite.envs import MPE2_WORLD, PHYSICS, SCENARIOS, ParticleWorld, make, scenario_names
 from masp_lite.envs.scenarios import get_scenario
 
 DT, DAMP, SENS = PHYSICS["dt"], PHYSICS["damping"], PHYSICS["sensitivity"]
@@ -13,8 +13,9 @@ PARTICLE = scenario_names("particle")
 
 
 def lone_agent(**kw):
-    """One agent, no obstacles, float64, at rest at the origin."""
-    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=0, horizon=200, dtype=torch.float64, seed=0, **kw)
+    """One agent, no obstacles, float64, at rest at the origin; mpe2's update order unless ``kw`` says."""
+    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=0, horizon=200, dtype=torch.float64, seed=0,
+                      **{**MPE2_WORLD, **kw})
     w.reset(options={"agent_pos": [[0.0, 0.0]], "landmark_pos": [[1.0, 1.0]]})
     return w
 
@@ -54,7 +55,7 @@ def test_velocity_first_integration_moves_in_the_step_of_the_push():
         act(w, [2])
         assert w.agent_pos[0, 0].tolist() == pytest.approx([x, 0.0], abs=1e-6)
         assert w.agent_vel[0, 0].tolist() == pytest.approx([v, 0.0], abs=1e-6)
-    assert make("mpe-5").scenario.integration == "mpe2"
+    assert make("mpe-5").scenario.integration == "velocity_first"  # every mpe-* preset is the paper's world
     with pytest.raises(ValueError, match="integration in"):
         make("mpe-5", integration="rk4")
     with pytest.raises(ValueError, match="drone"):
@@ -76,7 +77,7 @@ def soft_contact(dist, dist_min):
 
 
 def test_two_overlapping_agents_push_apart_with_mpe_contact_force():
-    w = ParticleWorld("mpe-5", num_agents=2, num_obstacles=0, dtype=torch.float64, seed=0)
+    w = ParticleWorld("mpe-5", num_agents=2, num_obstacles=0, dtype=torch.float64, seed=0, **MPE2_WORLD)
     place(w, [[0.0, 0.0], [0.15, 0.0]])
     obs, info = act(w, [0, 0])
     f = soft_contact(0.15, 0.2)               # along delta / dist = (-1, 0) for agent 0
@@ -87,7 +88,7 @@ def test_two_overlapping_agents_push_apart_with_mpe_contact_force():
 
 
 def test_contact_force_direction_is_along_the_centre_line():
-    w = ParticleWorld("mpe-5", num_agents=2, num_obstacles=0, dtype=torch.float64, seed=0)
+    w = ParticleWorld("mpe-5", num_agents=2, num_obstacles=0, dtype=torch.float64, seed=0, **MPE2_WORLD)
     place(w, [[0.0, 0.0], [0.09, 0.12]])      # dist 0.15 along (0.6, 0.8)
     act(w, [0, 0])
     f = soft_contact(0.15, 0.2) * DT
@@ -95,7 +96,7 @@ def test_contact_force_direction_is_along_the_centre_line():
 
 
 def test_immovable_obstacle_pushes_the_agent_and_does_not_move():
-    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=1, dtype=torch.float64, seed=0)
+    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=1, dtype=torch.float64, seed=0, **MPE2_WORLD)
     place(w, [[0.0, 0.0]], obstacles=[[0.15, 0.0]])
     _, info = act(w, [0])
     f = soft_contact(0.15, w.scenario.agent_radius + w.scenario.obstacle_radius)
@@ -105,7 +106,7 @@ def test_immovable_obstacle_pushes_the_agent_and_does_not_move():
 
 
 def test_obstacle_deflects_a_passing_agent():
-    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=1, horizon=60, dtype=torch.float64, seed=0)
+    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=1, horizon=60, dtype=torch.float64, seed=0, **MPE2_WORLD)
     w.reset(options={"agent_pos": [[-0.5, -0.1]], "obstacle_pos": [[0.0, 0.0]], "landmark_pos": [[1, 1]],
                      "agent_vel": [[2.0, 0.0]]})
     hits = 0
@@ -118,14 +119,14 @@ def test_obstacle_deflects_a_passing_agent():
 
 def test_head_on_push_tunnels_through_like_mpe():
     """MPE's contacts are soft (force 100 N/m of penetration, dt 0.1): a steady push goes through."""
-    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=1, horizon=60, dtype=torch.float64, seed=0)
+    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=1, horizon=60, dtype=torch.float64, seed=0, **MPE2_WORLD)
     w.reset(options={"agent_pos": [[-0.25, 0.0]], "obstacle_pos": [[0.0, 0.0]], "landmark_pos": [[1, 1]]})
     xs = [float(act(w, [2])[0]["agent_pos"][0, 0, 0]) for _ in range(8)]
     assert xs[0] == -0.25 and xs[-1] > 0.2
 
 
 def test_landmarks_do_not_collide_and_are_covered():
-    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=0, dtype=torch.float64, seed=0)
+    w = ParticleWorld("mpe-5", num_agents=1, num_obstacles=0, dtype=torch.float64, seed=0, **MPE2_WORLD)
     obs = w.reset(options={"agent_pos": [[0.3, 0.3]], "landmark_pos": [[0.32, 0.3]]})
     assert obs["covered"].tolist() == [[True]]
     _, info = act(w, [0])
@@ -167,7 +168,7 @@ def run_against_mpe2(dtype, obstacles, n=8, steps=60):
         world.landmarks.append(ob)
 
     w = ParticleWorld("mpe-5", num_agents=n, num_obstacles=len(obstacles), world_size=4.0, horizon=steps,
-                      seed=0, dtype=dtype)
+                      seed=0, dtype=dtype, **MPE2_WORLD)
     w.reset(options={"agent_pos": pos, "agent_vel": vel, "landmark_pos": lms, "obstacle_pos": obstacles})
     contacts, obstacle_contacts, worst = 0, 0, 0.0
     for t in range(steps):
@@ -329,12 +330,12 @@ def test_set_state_branches_an_episode_mid_way_and_steps_as_the_original():
 
 
 def test_central_landmark_spawn_keeps_landmarks_in_the_central_square_and_agents_everywhere():
-    import pytest
     L = make("mpe-20").scenario.world_size
-    w = make("mpe-20", num_envs=300, seed=0, landmark_spawn="central")
+    w = make("mpe-20", num_envs=300, seed=0)  # the preset: the paper's world
+    assert w.scenario.landmark_spawn == "central"
     assert float(w.landmark_pos.abs().max()) <= 0.8 * L / 2
     assert float(w.agent_pos.abs().max()) > 0.9 * L / 2          # agents still use the whole map
-    whole = make("mpe-20", num_envs=300, seed=0)
+    whole = make("mpe-20", num_envs=300, seed=0, landmark_spawn="whole")
     assert float(whole.landmark_pos.abs().max()) > 0.9 * L / 2
     with pytest.raises(ValueError, match="landmark_spawn"):
         make("mpe-20", landmark_spawn="middle")

@@ -8,7 +8,7 @@ import torch
 from pettingzoo.test import parallel_api_test, parallel_seed_test, render_test
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from masp_lite.envs import parallel_env
+from masp_lite.envs import MPE2_WORLD, parallel_env
 from masp_lite.envs.pettingzoo.particle import LOCAL_RATIO
 
 SCENARIOS = ["mpe-5", "mpe-50", "mpe-50to20", "mpe-20", "mpe-20to10"]
@@ -175,7 +175,7 @@ def test_rewards_and_positions_match_mpe2_simple_spread():
         agent.state.p_pos, agent.state.p_vel = pos[i].copy(), vel[i].copy()
     for i, lm in enumerate(ref.unwrapped.world.landmarks):
         lm.state.p_pos = lms[i].copy()
-    env = parallel_env("mpe-5", num_agents=n, num_obstacles=0, world_size=4.0, horizon=steps)
+    env = parallel_env("mpe-5", num_agents=n, num_obstacles=0, world_size=4.0, horizon=steps, **MPE2_WORLD)
     env.reset(options={"agent_pos": pos, "agent_vel": vel, "landmark_pos": lms})
     penalties = 0
     for _ in range(steps):

@@ -66,3 +66,20 @@ def test_cli(tmp_path, capsys):
     assert main(["reproduce", "--table", "mpe-varying", "--records", str(tmp_path)]) == 0
     assert "21.00 (1.00)" in capsys.readouterr().out
     assert main(["reproduce", "--records", str(tmp_path / "missing")]) == 2
+
+
+def test_training_seeds_are_pooled_exactly():
+    a = _rec("masp", "mpe-20", 20.0)
+    b = _rec("masp", "mpe-20", 22.0, method_options={"checkpoint": "results/training/mpe-20-seed1.pt"})
+    c = _rec("masp", "mpe-20", 30.0, method_options={"checkpoint": "results/training/mpe-50-seed2.pt"})
+    assert [rp.training_seed(r) for r in (a, b, c)] == [0, 1, None]   # seed 2 of another preset: not pooled
+    got = rp.pick([a, b, c], "masp", "mpe-20")
+    assert got["training_seeds"] == [0, 1] and got["steps"]["mean"] == 21.0
+    # two episodes per record, steps (19, 21) and (21, 23): population std of all four is sqrt(2)
+    assert got["steps"]["std"] == pytest.approx(2 ** 0.5)
+    table = rp.build("mpe", [a, b])
+    assert "mpe-20, MASP: mean over training seeds 0, 1" in rp.render(table, "text")
+    with pytest.raises(ValueError, match="expected one"):
+        rp.pick([a, b, dict(b)], "masp", "mpe-20")
+    unsolved = {**b, "steps": {"mean": None, "std": None}}  # every episode scored the horizon, 45
+    assert rp.pool([a, unsolved])["steps"]["mean"] == (20.0 + 45) / 2

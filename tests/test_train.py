@@ -188,6 +188,14 @@ def test_ship_run_keeps_every_stage_and_ships_only_where_told(tmp_path):
     assert slim["history"] == "results/training/mpe-5-seed1.manifest.json"
     nets, _ = load_weights(weights_dir / "mpe-5.pt", scenario="mpe-5")
     assert nets.arch["width"] == 8 and second["iterations"] == 2
+    # a kept history stands for all its stages: a third stage on top of the two kept ones
+    train("mpe-5", cfg, tmp_path / "third", seed=1, progress=False, init=tmp_path / "second" / "weights.pt")
+    three = ship_run(tmp_path / "third", tmp_path / "later", earlier=[history / "mpe-5-seed1.manifest.json"])
+    assert [s["training"] for s in three["stages"][:2]] == [s["training"] for s in entry["stages"]]
+    assert (tmp_path / "later" / "mpe-5-seed1.stage1.progress.csv").read_text() == first_curve
+    assert len(three["stages"]) == 3 and (tmp_path / "later" / "mpe-5-seed1.stage2.progress.csv").exists()
+    with pytest.raises(ValueError, match="expected a training history"):
+        ship_run(tmp_path / "third", tmp_path / "later", earlier=[tmp_path / "third" / "manifest.json"])
 
 
 def test_init_refuses_another_architecture(tmp_path):

@@ -27,7 +27,7 @@ import time
 import numpy as np
 import torch
 
-from ..envs import make
+from ..envs import get_scenario, make
 from ..evaluation.paper import PAPER
 from ..policies import get_factory, make_policy, method_options
 
@@ -93,7 +93,8 @@ def collision_split(method: str, scenario: str = "mpe-20", episodes: int = 20, s
 def run(args: argparse.Namespace) -> int:
     torch.set_num_threads(max(1, int(args.threads)))
     load0 = os.getloadavg()[0]
-    rows, record = [], {"scenario": args.scenario, "episodes": args.episodes, "threads": args.threads}
+    rows, record = [], {"scenario": args.scenario, "world": get_scenario(args.scenario).world,
+                        "episodes": args.episodes, "threads": args.threads}
     print(f"planning time per step, {args.scenario}, one world, {args.episodes} episode(s); "
           f"load average {load0:.2f} on {os.cpu_count()} cores")
     print(f"{'method':<11} {'ours ms':>14} {'paper ms':>10} {'paper/ours':>11}")

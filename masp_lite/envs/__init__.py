@@ -7,7 +7,8 @@ one episode (:mod:`.registry`). Both worlds share :class:`~.base.BatchedWorld`.
 from .base import BatchedWorld
 from .particle import ACTION_DIRECTIONS, NUM_ACTIONS, PHYSICS, ParticleWorld
 from .registry import make, parallel_env
-from .scenarios import MPE2_WORLD, OVERRIDES, SCENARIOS, Scenario, get_scenario, scenario_names, world_name
+from .scenarios import MPE2_WORLD, OVERRIDES, PAPER_WORLD, SCENARIOS, Scenario, get_scenario, scenario_names, world_name
 
 __all__ = ["make", "parallel_env", "BatchedWorld", "ParticleWorld", "Scenario", "SCENARIOS", "OVERRIDES",
-           "get_scenario", "scenario_names", "world_name", "MPE2_WORLD", "PHYSICS", "ACTION_DIRECTIONS", "NUM_ACTIONS"]
+           "get_scenario", "scenario_names", "world_name", "PAPER_WORLD", "MPE2_WORLD", "PHYSICS",
+           "ACTION_DIRECTIONS", "NUM_ACTIONS"]

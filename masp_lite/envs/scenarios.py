@@ -21,6 +21,13 @@ name            agents  obstacles  map (m²)  horizon  team change
 paper's map area); the map spans ``[-world_size / 2, world_size / 2]`` on each axis.
 Landmarks always number ``num_agents`` (the paper keeps N1 landmarks when the team
 shrinks).
+
+Every ``mpe-*`` preset is the paper's world (:data:`PAPER_WORLD`): OpenAI MPE's
+velocity-first update order and landmarks over the central 0.8× square, as in the code the
+paper's descends from. Agents and obstacles spawn uniformly over the whole map, without
+overlaps; the paper does not say where obstacles go, so they are placed as agents are.
+``integration="mpe2", landmark_spawn="whole"`` (:data:`MPE2_WORLD`) is PettingZoo mpe2's
+world, in which the particle world moves exactly as mpe2 does (the tests check it there).
 """
 from __future__ import annotations
 
@@ -28,7 +35,8 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-__all__ = ["Scenario", "SCENARIOS", "OVERRIDES", "get_scenario", "scenario_names", "MPE2_WORLD", "world_name"]
+__all__ = ["Scenario", "SCENARIOS", "OVERRIDES", "get_scenario", "scenario_names", "PAPER_WORLD", "MPE2_WORLD",
+           "world_name"]
 
 
 @dataclass(frozen=True)
@@ -58,15 +66,15 @@ class Scenario:
     obstacle_radius: float = 0.1
     """Obstacle circle radius in metres (paper: 0.1)."""
     integration: str = "mpe2"
-    """Particle world's update order. ``"mpe2"`` (default, as ``mpe2`` does today): position
-    with the previous velocity, then the velocity. ``"velocity_first"``: the original OpenAI
-    MPE's order (velocity, then position with the new velocity), in which a push already moves
-    the agent in the step it is given. Only for experiments on how the order changes the task;
-    every shipped result uses ``"mpe2"``."""
+    """Particle world's update order. ``"velocity_first"`` (every ``mpe-*`` preset): the
+    original OpenAI MPE's order, which the paper's code inherits (damp and push the velocity,
+    then move with the new velocity), so a push already moves the agent in the step it is
+    given. ``"mpe2"`` (the field's default, kept for the drone presets, which ignore it):
+    PettingZoo's mpe2 today, position with the previous velocity, then the velocity."""
     landmark_spawn: str = "whole"
-    """Where landmarks spawn: ``"whole"`` map (uniform, as agents and obstacles) or
-    ``"central"``, the central 0.8× square (MAGE-X's navigation scenario:
-    ``0.8 * uniform(-L/2, L/2)`` per axis)."""
+    """Where landmarks spawn: ``"central"`` (every ``mpe-*`` preset), the central 0.8× square
+    (MAGE-X's navigation scenario: ``0.8 * uniform(-L/2, L/2)`` per axis), or the ``"whole"``
+    map (uniform, as agents and obstacles; mpe2's simple_spread)."""
 
     @property
     def world(self) -> dict:
@@ -97,7 +105,7 @@ class Scenario:
 
 def _particle(name, n, k, area, horizon, team_after=None):
     return Scenario(name=name, kind="particle", num_agents=n, num_obstacles=k,
-                    world_size=math.sqrt(area), horizon=horizon, team_after=team_after)
+                    world_size=math.sqrt(area), horizon=horizon, team_after=team_after, **PAPER_WORLD)
 
 
 def _drone(name, n, area, horizon, team_after=None):
@@ -106,6 +114,14 @@ def _drone(name, n, area, horizon, team_after=None):
                     world_size=math.sqrt(area), horizon=horizon, team_after=team_after,
                     agent_radius=0.17)
 
+
+#: The paper's MPE world, which every ``mpe-*`` preset is: the update order and landmark
+#: spawn of the code the paper's descends from (OpenAI MPE -> on-policy -> MAGE-X).
+PAPER_WORLD = {"integration": "velocity_first", "landmark_spawn": "central"}
+#: PettingZoo mpe2's world (``--set integration=mpe2 --set landmark_spawn=whole``), in which the
+#: particle world moves exactly as mpe2's simple_spread; records and weights files that name no
+#: world were made in it.
+MPE2_WORLD = {"integration": "mpe2", "landmark_spawn": "whole"}
 
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in [
     _particle("mpe-5", 5, 5, 4.0, 18),
@@ -122,8 +138,6 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in [
 INTEGRATIONS = ("mpe2", "velocity_first")
 #: Landmark spawn regions of the particle world (:attr:`Scenario.landmark_spawn`).
 LANDMARK_SPAWNS = ("whole", "central")
-#: PettingZoo mpe2's world: what records and weights files that name no world were made in.
-MPE2_WORLD = {"integration": "mpe2", "landmark_spawn": "whole"}
 
 
 def world_name(world: dict) -> str:

@@ -12,20 +12,27 @@ shipped weights, or ``--quick``: a few episodes per seed). A table takes only re
 in its presets' world definition (:attr:`masp_lite.envs.Scenario.world`) and says which
 world that is, so numbers from two worlds are never mixed in one table. Methods of the
 paper that are not built yet (the RL baselines) show "—" in our rows.
+
+A learned method's cell is the mean over its training seeds when records of several are
+there (the shipped weights and ``results/training/BASE-seedK.pt``, see :func:`pick`); a
+note under the table says which seeds.
 """
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..envs import get_scenario, world_name
-from ..policies import METHODS
+from ..envs import MPE2_WORLD, get_scenario, world_name
+from ..policies import METHODS, get_factory, method_options
+from ..weights import base_scenario, read_manifest
 from .evaluate import evaluate
 from .paper import PAPER
 from .tables import cell, render_rows
 
-__all__ = ["Table", "TABLES", "PAPER", "load_records", "pick", "evaluate_records", "render", "build"]
+__all__ = ["Table", "TABLES", "PAPER", "load_records", "pick", "pool", "training_seed", "evaluate_records", "render",
+           "build"]
 
 _MPE_COLUMNS = ("h-orca", "h-rrtstar", "h-voronoi", "h-mappo", "mappo", "darl1n", "htamp", "mage-x", "masp")
 _OURS_ONLY = ("h-greedy", "h-capt", "h-bottleneck")
@@ -43,13 +50,16 @@ class Table:
     world: dict
     head: list
     rows: list
+    notes: list = field(default_factory=list)
+    """Lines printed under the table (e.g. which training seeds a learned method's cells pool)."""
 
 
 def load_records(root) -> list[dict]:
     """Every ``evaluate --json`` record under ``root`` (e.g. ``results/``), each with its ``path``.
 
     ``bench planners --json`` files count too: each method's one-world step time becomes a
-    record with ``num_envs`` 1 and only ``decision_ms`` (what the per-step-time table reads)."""
+    record with ``num_envs`` 1 and only ``decision_ms`` (what the per-step-time table reads), in
+    the world the file names (files that name none were made in mpe2's world)."""
     root = Path(root)
     if not root.is_dir():
         raise ValueError(f"records: expected a folder of evaluate records such as results/, got {str(root)!r}")
@@ -62,7 +72,7 @@ def load_records(root) -> list[dict]:
             for method, v in rec.items():
                 if isinstance(v, dict) and "ms" in v:
                     out.append({"method": method, "scenario": rec["scenario"], "num_envs": 1, "bench": True,
-                                "world": rec.get("world", get_scenario(rec["scenario"]).world),
+                                "world": rec.get("world", MPE2_WORLD),
                                 "decision_ms": v["ms"], "path": str(path)})
     return out
 
@@ -73,31 +83,89 @@ def _plain(rec: dict) -> bool:
     return not rec.get("method_options") and not extra and not rec.get("bench")
 
 
+def training_seed(rec: dict) -> int | None:
+    """The training seed behind a learned method's record, or None for anything else.
+
+    A record of the shipped weights (no options) is the shipped file's seed (the manifest's;
+    0 when nothing is shipped); a record whose only option is ``checkpoint`` =
+    ``results/training/BASE-seedK.pt`` (the kept weights of training seed K of the scenario's
+    preset) is K."""
+    extra = set(rec.get("overrides", {})) - {"integration", "landmark_spawn"}
+    opts = rec.get("method_options", {})
+    if extra or rec.get("bench"):
+        return None
+    if not opts:
+        return int(read_manifest().get(base_scenario(rec["scenario"]), {}).get("seed", 0))
+    m = re.fullmatch(r"results/training/(.+)-seed(\d+)\.pt", str(opts.get("checkpoint", "")))
+    if set(opts) == {"checkpoint"} and m and m.group(1) == base_scenario(rec["scenario"]):
+        return int(m.group(2))
+    return None
+
+
+def _learned(method: str) -> bool:
+    """A method that loads weights (its factory takes a ``checkpoint``)."""
+    return method in METHODS and "checkpoint" in method_options(get_factory(method))[0]
+
+
+def pool(records) -> dict:
+    """One record from several with the same seeds and episodes (e.g. one per training seed).
+
+    Means are the mean of the records' means; standard deviations are over all their
+    episodes pooled (population std, as :func:`~masp_lite.evaluation.evaluate` reports
+    one record's). A Steps ``None`` (no episode solved) counts as the horizon, which is what
+    every one of its episodes scored."""
+    first = records[0]
+    if any((r["seeds"], r["episodes_per_seed"]) != (first["seeds"], first["episodes_per_seed"]) for r in records):
+        raise ValueError("pool: expected records with the same seeds and episodes per seed")
+    out = {k: first[k] for k in ("method", "scenario", "world", "seeds", "episodes_per_seed")}
+    horizon = get_scenario(first["scenario"]).horizon
+    for key in ("sr", "steps", "cr"):
+        stats = [r[key] if r[key]["mean"] is not None else {"mean": horizon, "std": 0.0} for r in records]
+        mean = sum(x["mean"] for x in stats) / len(stats)
+        second = sum(x["std"] ** 2 + x["mean"] ** 2 for x in stats) / len(stats)
+        out[key] = {"mean": mean, "std": max(second - mean**2, 0.0) ** 0.5}
+    if all(r["steps"]["mean"] is None for r in records):
+        out["steps"] = {"mean": None, "std": None}
+    out["pooled"] = [r.get("path") for r in records]
+    return out
+
+
 def pick(records, method: str, scenario: str) -> dict | None:
     """The record of ``method`` on the preset ``scenario`` in the preset's world, or None.
 
     A record from another world definition is never taken; two candidates are one clear
-    error (the table would otherwise depend on file order)."""
+    error (the table would otherwise depend on file order). A learned method's records of
+    several training seeds (:func:`training_seed`) are pooled into one (:func:`pool`), with
+    ``training_seeds`` saying which."""
     world = get_scenario(scenario).world
-    found = [r for r in records if r["method"] == method and r["scenario"] == scenario and _plain(r)
-             and r.get("world", {}) == world]
-    if len(found) > 1:
-        raise ValueError(f"reproduce: {len(found)} records of {method} on {scenario}: "
-                         f"{[r.get('path') for r in found]}; expected one")
+    mine = [r for r in records if r["method"] == method and r["scenario"] == scenario and r.get("world", {}) == world]
+    by_seed = {}
+    for r in mine:
+        if _learned(method) and training_seed(r) is not None:
+            by_seed.setdefault(training_seed(r), []).append(r)
+    found = [r for r in mine if _plain(r)] if not by_seed else [rs[0] for rs in by_seed.values()]
+    clash = [rs for rs in by_seed.values() if len(rs) > 1] or ([found] if len(found) > 1 and not by_seed else [])
+    if clash:
+        raise ValueError(f"reproduce: {len(clash[0])} records of {method} on {scenario}: "
+                         f"{[r.get('path') for r in clash[0]]}; expected one")
+    if len(by_seed) > 1:
+        return {**pool([by_seed[k][0] for k in sorted(by_seed)]), "training_seeds": sorted(by_seed)}
     return found[0] if found else None
 
 
 def _metric_table(name, title, scenarios, columns, records, latex):
     head = ["Agents", "Metric", "", *(_LABEL[c] for c in columns)]
-    rows = []
+    rows, notes = [], []
     for sc in scenarios:
+        ours = [pick(records, c, sc) for c in columns]
+        paper = [PAPER[name].get((sc, c)) for c in columns]
         for i, (key, label) in enumerate((("steps", "Steps ↓"), ("sr", "SR ↑"), ("cr", "CR ↓"))):
-            ours = [pick(records, c, sc) for c in columns]
-            paper = [PAPER[name].get((sc, c)) for c in columns]
             rows.append([sc if i == 0 else "", label, "ours",
                          *(cell(r[key], latex) if r else "—" for r in ours)])
             rows.append(["", "", "paper", *(cell(p[key], latex) if p else "" for p in paper)])
-    return Table(name, title, get_scenario(scenarios[0]).world, head, rows)
+        notes += [f"{sc}, {_LABEL[c]}: mean over training seeds {', '.join(map(str, r['training_seeds']))}"
+                  for c, r in zip(columns, ours) if r and "training_seeds" in r]
+    return Table(name, title, get_scenario(scenarios[0]).world, head, rows, notes)
 
 
 def table_mpe(records, latex=False) -> Table:
@@ -158,5 +226,7 @@ def render(table: Table, fmt: str = "markdown") -> str:
     caption = f"{table.title} — world: {world_name(table.world)}"
     body = render_rows(table.head, table.rows, fmt)
     if fmt == "latex":
-        return f"{body}\n% {caption}"
-    return f"{caption}\n{body}" if fmt == "text" else f"**{caption}**\n\n{body}"
+        return "\n".join([body, f"% {caption}", *(f"% {n}" for n in table.notes)])
+    if fmt == "text":
+        return "\n".join([caption, body, *table.notes])
+    return "\n".join([f"**{caption}**", "", body, *([""] + [f"- {n}" for n in table.notes] if table.notes else [])])
