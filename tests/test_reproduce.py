@@ -83,3 +83,15 @@ def test_training_seeds_are_pooled_exactly():
         rp.pick([a, b, dict(b)], "masp", "mpe-20")
     unsolved = {**b, "steps": {"mean": None, "std": None}}  # every episode scored the horizon, 45
     assert rp.pool([a, unsolved])["steps"]["mean"] == (20.0 + 45) / 2
+
+
+def test_claims_are_computed_from_the_records():
+    records = [_rec("masp", "mpe-50", 40.0), _rec("h-orca", "mpe-50", 60.0), _rec("h-rrtstar", "mpe-50", 50.0),
+               _rec("h-voronoi", "mpe-50", 48.0), _rec("h-greedy", "mpe-50", 39.0)]
+    rows = {(r[0], r[1]): r for r in rp.build("claims", records).rows}
+    assert rows[("MASP fewer Steps than every (H) planner", "mpe-50")][3:] == ["40.00 vs (H)Voronoi 48.00", "yes"]
+    assert rows[("MASP fewer Steps than h-greedy (ours only)", "mpe-50")][4] == "no"
+    cut = rows[("MASP ≥ 19.12 % fewer Steps than (H)RRT* (and the best (H))", "mpe-50")]
+    assert cut[3] == "20.0 % vs (H)RRT*, 16.7 % vs best" and cut[4] == "no"   # 19.12 % only against (H)RRT*
+    assert rows[("MASP SR ≥ 0.99", "mpe-50")][4] == "yes" and rows[("MASP SR ≥ 0.99", "mpe-5")][4] == "—"
+    assert rows[("MASP the lowest CR", "mpe-50")][4] == "no"                 # 0.1 everywhere: a tie is not lower

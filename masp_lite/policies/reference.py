@@ -158,8 +158,10 @@ class HungarianGreedy:
     is kept in ``self.assignment`` (B, N), ``-1`` for none, for playback.
 
     Motion (every step, vectorized over worlds and agents): let ``d`` be the distance to
-    the goal left after this step's drift (``pos`` moves by ``vel * dt`` before the new
-    velocity applies) and ``r = r_agent + r_landmark`` the reach distance. The desired
+    the goal from ``pos + vel * dt``, where the current velocity alone would take the agent
+    in one step (exactly where it goes in mpe2's order; in the paper's velocity-first order,
+    which also damps and pushes first, a look-ahead the same for every method built on
+    this controller), and ``r = r_agent + r_landmark`` the reach distance. The desired
     velocity points at the goal with speed :func:`braking_speed` of ``d - r / 3`` (aim to
     stop a little short, since the discrete actions change the speed by 0.5 m/s per step
     and overshoot), and is zero once ``d < r / 2`` (the agent covers the landmark: brake
@@ -220,7 +222,7 @@ class HungarianGreedy:
         has_goal = (self.assignment >= 0) & obs["alive"]
         idx = self.assignment.clamp(min=0).unsqueeze(-1).expand_as(pos)
         goal = torch.gather(obs["landmark_pos"], 1, idx)
-        drift = pos + vel * PHYSICS["dt"]                       # where this step takes us anyway
+        drift = pos + vel * PHYSICS["dt"]                       # where the current velocity alone leads
         to_goal = goal - drift
         dist = to_goal.norm(dim=-1, keepdim=True)
         reach = self.world.scenario.reach_distance
