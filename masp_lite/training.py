@@ -47,7 +47,7 @@ from .evaluation import collision_rate, rollout, steps, success_rate
 from .policies.masp import MASPPolicy
 from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256, trained_world
 
-__all__ = ["train", "parse_config", "evaluate_nets", "ship_run", "CSV_FIELDS", "EVAL_SEED"]
+__all__ = ["train", "parse_config", "evaluate_nets", "ship_run", "ship_zero_shot", "CSV_FIELDS", "EVAL_SEED"]
 
 CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward",
               "gm_policy_loss", "gm_value_loss", "gm_entropy", "cae_policy_loss", "cae_value_loss", "cae_entropy",
@@ -227,6 +227,22 @@ def _earlier_runs(earlier):
     return out
 
 
+def ship_zero_shot(weights_dir, scenario: str, source: str, note: str) -> dict:
+    """Ship the weights of the preset ``source`` for the preset ``scenario`` as well, unchanged.
+
+    The size-invariant networks then run zero-shot on ``scenario``: its entry in
+    ``weights_dir/manifest.json`` copies ``source``'s (file, hash, history) and adds
+    ``"trained_on": source`` and ``note`` (why no weights of its own ship). Returns the entry."""
+    manifest_path = Path(weights_dir) / "manifest.json"
+    manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
+    if source not in manifest or manifest[source].get("trained_on"):
+        raise ValueError(f"ship_zero_shot: expected shipped weights trained on {source!r}; the manifest has "
+                         f"{sorted(k for k, v in manifest.items() if not v.get('trained_on'))}")
+    manifest[scenario] = {**manifest[source], "scenario": scenario, "trained_on": source, "note": note}
+    atomic_write_bytes(manifest_path, (json.dumps(manifest, indent=2, sort_keys=True) + "\n").encode())
+    return manifest[scenario]
+
+
 def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dict | None = None,
              note: str | None = None) -> dict:
     """Keep a finished run: its history in ``history_dir``, its weights shipped or beside the history.
@@ -280,5 +296,8 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
                           "env_steps": sum(r["env_steps"] for r in runs),
                           "wall_clock_s": round(sum(r["wall_clock_s"] for r in runs), 1),
                           "machine": runs[-1]["machine"], "history": f"results/training/{stem}.manifest.json"}
+        for other, entry in manifest.items():  # presets that ship these weights zero-shot follow them
+            if entry.get("trained_on") == name:
+                manifest[other] = {**manifest[name], "scenario": other, "trained_on": name, "note": entry["note"]}
         atomic_write_bytes(manifest_path, (json.dumps(manifest, indent=2, sort_keys=True) + "\n").encode())
     return history

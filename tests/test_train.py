@@ -6,6 +6,7 @@ import torch
 
 from masp_lite.__main__ import main
 from masp_lite.config import TrainConfig
+from masp_lite.envs import get_scenario
 from masp_lite.nets.masp import MASPNets
 from masp_lite.training import parse_config, train
 from masp_lite.weights import load_weights, save_weights
@@ -198,6 +199,31 @@ def test_ship_run_keeps_every_stage_and_ships_only_where_told(tmp_path):
         ship_run(tmp_path / "third", tmp_path / "later", earlier=[tmp_path / "third" / "manifest.json"])
 
 
+def test_a_preset_can_ship_another_presets_weights_zero_shot(tmp_path, monkeypatch):
+    import masp_lite.weights as weights
+    from masp_lite.training import ship_run, ship_zero_shot
+    cfg = MAPPOConfig(**{**TINY, "updates": 1})
+    train("mpe-5", cfg, tmp_path / "run", seed=0, progress=False)
+    wd = tmp_path / "weights"
+    with pytest.raises(ValueError, match="expected shipped weights trained on 'mpe-5'"):
+        ship_zero_shot(wd, "mpe-20", "mpe-5", note="no weights yet")
+    ship_run(tmp_path / "run", tmp_path / "history", wd)
+    entry = ship_zero_shot(wd, "mpe-20", "mpe-5", note="the mpe-5 weights, zero-shot")
+    assert entry["file"] == "mpe-5.pt" and entry["trained_on"] == "mpe-5" and entry["scenario"] == "mpe-20"
+    monkeypatch.setattr(weights, "HERE", wd)
+    monkeypatch.setattr(weights, "MANIFEST", wd / "manifest.json")
+    assert weights.trained_preset("mpe-20to10") == "mpe-5" and weights.trained_preset("mpe-50") == "mpe-50"
+    nets, rec = weights.load_weights(scenario=get_scenario("mpe-20"))       # the shipped default: accepted
+    assert rec["scenario"] == "mpe-5"
+    with pytest.raises(ValueError, match="trained for 'mpe-5'"):
+        weights.load_weights(wd / "mpe-5.pt", scenario=get_scenario("mpe-50"))
+    train("mpe-5", cfg, tmp_path / "run2", seed=0, progress=False, init=tmp_path / "run" / "weights.pt")
+    ship_run(tmp_path / "run2", tmp_path / "history", wd)                    # re-shipping mpe-5 updates mpe-20
+    manifest = json.loads((wd / "manifest.json").read_text())
+    assert manifest["mpe-20"]["sha256"] == manifest["mpe-5"]["sha256"] == weights.sha256(wd / "mpe-5.pt")
+    assert manifest["mpe-20"]["note"] == "the mpe-5 weights, zero-shot"
+
+
 def test_init_refuses_another_architecture(tmp_path):
     train("mpe-5", MAPPOConfig(**{**TINY, "updates": 1}), tmp_path / "base", seed=0, progress=False)
     with pytest.raises(ValueError, match="differs from the configured"):
@@ -206,7 +232,6 @@ def test_init_refuses_another_architecture(tmp_path):
 
 
 def test_weights_remember_their_world_and_refuse_another(tmp_path):
-    from masp_lite.envs import get_scenario
     from masp_lite.weights import read_weights, trained_world
     paper = get_scenario("mpe-5", integration="velocity_first", landmark_spawn="central")
     save_weights(tmp_path / "w.pt", MASPNets(width=8), paper)

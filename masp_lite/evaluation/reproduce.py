@@ -26,7 +26,7 @@ from pathlib import Path
 
 from ..envs import MPE2_WORLD, get_scenario, world_name
 from ..policies import METHODS, get_factory, method_options
-from ..weights import base_scenario, read_manifest
+from ..weights import base_scenario, read_manifest, trained_preset
 from .evaluate import evaluate
 from .paper import PAPER
 from .tables import cell, render_rows
@@ -78,9 +78,11 @@ def load_records(root) -> list[dict]:
 
 
 def _plain(rec: dict) -> bool:
-    """A record of the method as shipped: no options, no overrides beyond the world definition."""
+    """A record of the method as shipped: no options, no overrides beyond the world definition,
+    evaluated in batches (a record of one world at a time, ``num_envs`` 1, is a timing record
+    that only the per-step-time table reads)."""
     extra = set(rec.get("overrides", {})) - {"integration", "landmark_spawn"}
-    return not rec.get("method_options") and not extra and not rec.get("bench")
+    return not rec.get("method_options") and not extra and not rec.get("bench") and rec.get("num_envs") != 1
 
 
 def training_seed(rec: dict) -> int | None:
@@ -89,15 +91,16 @@ def training_seed(rec: dict) -> int | None:
     A record of the shipped weights (no options) is the shipped file's seed (the manifest's;
     0 when nothing is shipped); a record whose only option is ``checkpoint`` =
     ``results/training/BASE-seedK.pt`` (the kept weights of training seed K of the scenario's
-    preset) is K."""
+    preset, or of the preset whose weights it runs zero-shot: :func:`masp_lite.weights.trained_preset`)
+    is K."""
     extra = set(rec.get("overrides", {})) - {"integration", "landmark_spawn"}
     opts = rec.get("method_options", {})
-    if extra or rec.get("bench"):
+    if extra or rec.get("bench") or rec.get("num_envs") == 1:
         return None
     if not opts:
         return int(read_manifest().get(base_scenario(rec["scenario"]), {}).get("seed", 0))
     m = re.fullmatch(r"results/training/(.+)-seed(\d+)\.pt", str(opts.get("checkpoint", "")))
-    if set(opts) == {"checkpoint"} and m and m.group(1) == base_scenario(rec["scenario"]):
+    if set(opts) == {"checkpoint"} and m and m.group(1) == trained_preset(rec["scenario"]):
         return int(m.group(2))
     return None
 
@@ -290,6 +293,9 @@ def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress:
     """Fresh records for ``table``'s cells: every registered method of its columns, shipped weights."""
     if table not in TABLES:
         raise ValueError(f"unknown table {table!r}; expected one of {list(TABLES)}")
+    if table == "claims":  # every record the three tables read
+        return [r for t in ("mpe", "mpe-varying", "per-step-time")
+                for r in evaluate_records(t, episodes, seeds, progress)]
     if table == "per-step-time":
         return [evaluate(m, "mpe-50", episodes=episodes, seeds=list(seeds), num_envs=1, progress=progress)
                 for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]

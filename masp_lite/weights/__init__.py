@@ -19,7 +19,10 @@ command, configuration, machine and curves). :func:`load_weights` refuses (one c
 manifest, another architecture, or weights trained for another scenario. Scenarios with a
 team change, or with overrides such as ``num_agents=100``, use the weights of the preset
 they start from (``mpe-20to10`` -> ``mpe-20``): the networks are size-invariant, and
-this is the paper's zero-shot protocol.
+this is the paper's zero-shot protocol. A manifest entry may also ship another preset's
+file for a preset, zero-shot (``"trained_on": "mpe-20"`` under ``mpe-50``): such an entry
+has no training of its own, and :func:`trained_preset` names the preset whose training
+seeds stand for it.
 """
 from __future__ import annotations
 
@@ -37,7 +40,7 @@ from ..nets.masp import MASPNets
 
 __all__ = ["FORMAT", "HERE", "MANIFEST", "save_weights", "load_weights", "read_weights", "read_manifest",
            "trained_world",
-           "default_checkpoint", "base_scenario", "sha256", "atomic_write_bytes"]
+           "default_checkpoint", "base_scenario", "trained_preset", "sha256", "atomic_write_bytes"]
 
 FORMAT = "masp-lite/masp-weights/1"
 HERE = Path(__file__).resolve().parent
@@ -49,6 +52,13 @@ def base_scenario(scenario) -> str:
     """The preset whose weights a scenario uses: its own name, or the N1 preset of a team change."""
     name = scenario if isinstance(scenario, str) else scenario.name
     return _BASE.get(name, name)
+
+
+def trained_preset(scenario) -> str:
+    """The preset the shipped weights for ``scenario`` were trained on: :func:`base_scenario`,
+    or the ``trained_on`` of its manifest entry when another preset's file ships zero-shot."""
+    name = base_scenario(scenario)
+    return read_manifest().get(name, {}).get("trained_on", name)
 
 
 def sha256(path) -> str:
@@ -134,15 +144,17 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
     """Build :class:`~masp_lite.nets.masp.MASPNets` from a weights file; returns ``(nets, record)``.
 
     ``path`` ``None`` means the shipped file for ``scenario``. Unless ``any_scenario``,
-    the file must have been trained for ``base_scenario(scenario)``, in the scenario's
-    world definition (update order, landmark spawn; :func:`trained_world`).
+    the file must have been trained for ``base_scenario(scenario)`` (or for the preset whose
+    weights ship for it zero-shot, :func:`trained_preset`), in the scenario's world
+    definition (update order, landmark spawn; :func:`trained_world`).
     """
     if path is None:
         if scenario is None:
             raise ValueError("load_weights: expected a path or a scenario")
         path = default_checkpoint(scenario)
     rec = read_weights(path)
-    if scenario is not None and not any_scenario and rec["scenario"] != base_scenario(scenario):
+    if scenario is not None and not any_scenario and rec["scenario"] not in (base_scenario(scenario),
+                                                                             trained_preset(scenario)):
         raise ValueError(f"checkpoint {str(path)!r} was trained for {rec['scenario']!r}; expected weights for "
                          f"{base_scenario(scenario)!r} (pass any_scenario=True to use them anyway)")
     if scenario is not None and not any_scenario and not isinstance(scenario, str) and \
