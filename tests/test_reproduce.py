@@ -4,7 +4,6 @@ import json
 import pytest
 
 from masp_lite.cli import main
-from masp_lite.cli.reproduce import RESULTS
 from masp_lite.envs import get_scenario
 from masp_lite.evaluation import reproduce as rp
 
@@ -17,7 +16,7 @@ def _rec(method, scenario, steps=10.0, world=None, **extra):
 
 
 def test_tables_from_the_committed_records_show_ours_and_the_papers():
-    records = rp.load_records(RESULTS)
+    records = rp.load_records()
     text = rp.render(rp.build("mpe", records), "text")
     masp20 = rp.pick(records, "masp", "mpe-20")
     assert f"{masp20['steps']['mean']:.2f} ({masp20['steps']['std']:.2f})" in text

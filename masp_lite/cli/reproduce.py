@@ -9,14 +9,9 @@ for a first look and for tests.
 """
 from __future__ import annotations
 
-from pathlib import Path
+from ..evaluation.reproduce import RESULTS_DIR, TABLES, build, evaluate_records, load_records, render
 
-from ..evaluation.reproduce import TABLES, build, evaluate_records, load_records, render
-
-__all__ = ["add_arguments", "run", "RESULTS"]
-
-#: ``results/`` of the source checkout this package runs from.
-RESULTS = Path(__file__).resolve().parents[2] / "results"
+__all__ = ["add_arguments", "run"]
 
 
 def add_arguments(parser) -> None:
@@ -26,7 +21,7 @@ def add_arguments(parser) -> None:
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--evaluate", action="store_true", help="evaluate the methods now, 3 seeds x 100 episodes")
     mode.add_argument("--quick", action="store_true", help="evaluate the methods now, 3 seeds x 4 episodes")
-    parser.add_argument("--records", default=None, help=f"folder of evaluate records (default {RESULTS})")
+    parser.add_argument("--records", default=None, help=f"folder of evaluate records (default {RESULTS_DIR})")
 
 
 def run(args) -> int:
@@ -36,7 +31,7 @@ def run(args) -> int:
         records = [r for name in dict.fromkeys([*needed, *names]) if name != "claims"
                    for r in evaluate_records(name, episodes=4 if args.quick else 100, progress=True)]
     else:
-        records = load_records(args.records or RESULTS)
+        records = load_records(args.records or RESULTS_DIR)
     for name in names:
         print(render(build(name, records, latex=args.format == "latex"), args.format))
         print()

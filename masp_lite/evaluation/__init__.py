@@ -7,7 +7,10 @@
 * :mod:`.evaluate` — ``evaluate``: a method over seeds × episodes, the JSON record;
 * :mod:`.tables` — records as the paper's tables (text, markdown, LaTeX);
 * :mod:`.claims` — which of two records is better, metric by metric, and the paper's
-  MASP numbers to compare with (``verdict``, ``against_paper``, ``PAPER_MASP``).
+  MASP numbers to compare with (``verdict``, ``against_paper``, ``PAPER_MASP``);
+* :mod:`.paper` — the paper's numbers (``PAPER``), typed in once;
+* :mod:`.reproduce` — the paper's tables and its MPE claims from the committed records
+  (``python -m masp_lite reproduce``).
 """
 from .evaluate import MAX_ENVS, evaluate
 from .metrics import EpisodeLog, collision_rate, reached_target, steps, success_rate

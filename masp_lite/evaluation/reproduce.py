@@ -31,8 +31,8 @@ from .evaluate import evaluate
 from .paper import PAPER
 from .tables import cell, render_rows
 
-__all__ = ["Table", "TABLES", "PAPER", "load_records", "pick", "pool", "training_seed", "evaluate_records", "render",
-           "build"]
+__all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "pick", "pool", "training_seed",
+           "evaluate_records", "render", "build"]
 
 _MPE_COLUMNS = ("h-orca", "h-rrtstar", "h-voronoi", "h-mappo", "mappo", "darl1n", "htamp", "mage-x", "masp")
 _OURS_ONLY = ("h-greedy", "h-capt", "h-bottleneck")
@@ -54,8 +54,12 @@ class Table:
     """Lines printed under the table (e.g. which training seeds a learned method's cells pool)."""
 
 
-def load_records(root) -> list[dict]:
-    """Every ``evaluate --json`` record under ``root`` (e.g. ``results/``), each with its ``path``.
+#: ``results/`` of the source checkout this package runs from: the committed records.
+RESULTS_DIR = Path(__file__).resolve().parents[2] / "results"
+
+
+def load_records(root=RESULTS_DIR) -> list[dict]:
+    """Every ``evaluate --json`` record under ``root`` (default :data:`RESULTS_DIR`), each with its ``path``.
 
     ``bench planners --json`` files count too: each method's one-world step time becomes a
     record with ``num_envs`` 1 and only ``decision_ms`` (what the per-step-time table reads), in
