@@ -177,7 +177,8 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
             bar.close()
     final = evaluate_nets(trainer.nets, sc, overrides, cfg.run.eval_episodes)
     manifest = {
-        "method": "masp", "scenario": sc, "overrides": dict(overrides or {}), "seed": int(seed),
+        "method": "masp", "scenario": sc, "world": trainer.world.scenario.world, "overrides": dict(overrides or {}),
+        "seed": int(seed),
         "command": first_command or command or default_command,
         "last_command": command or default_command,
         "init": str(init) if init is not None else None, "config": cfg.flat(),
@@ -195,7 +196,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
 
 _RUN_INFO = ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s", "started", "finished", "machine",
              "config", "final_eval")
-_RUN_EXTRA = ("last_command", "overrides")  # present in the manifests of resumed runs / runs with overrides
+_RUN_EXTRA = ("last_command", "overrides", "world")  # absent from older manifests (world: since the paper's world)
 
 
 def _run_info(m: dict) -> dict:
