@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from masp_lite.envs import get_scenario
+from masp_lite.envs import MPE2_WORLD, get_scenario
 from masp_lite.evaluation import evaluate
 from masp_lite.weights import sha256
 
@@ -80,6 +80,7 @@ def test_training_history_names_its_weights_and_curves(path):
     nets, rec = load_weights(weights, scenario=m["scenario"])
     assert nets.arch == m["arch"] and rec["scenario"] == m["scenario"]
     assert m["stages"] and all((path.parent / s["progress"]).exists() for s in m["stages"])
+    assert m["stages"][-1]["training"]["world"] == m["world"] == rec.get("world", MPE2_WORLD)  # where it last trained
 
 
 def test_every_shipped_file_has_its_history():
