@@ -226,7 +226,8 @@ def table_claims(records, latex=False) -> Table:
     every (H) planner, the Steps saved against (H)RRT* (19.12 % at N = 50, 47.87 % over the
     varying team sizes; the paper's figures are against (H)RRT*, we show ours against both
     (H)RRT* and our best (H) planner), the lowest CR, and a per-step time at least 3x below
-    every planner's; rows marked "ours only" compare with h-greedy, which the paper does not have. "holds" is "yes", "no", or "—" when a record is missing."""
+    every planner's; rows marked "ours only" compare with h-greedy, which the paper does not
+    have. "holds" is "yes", "no", or "—" when a record is missing."""
     def table_of(sc):
         return "mpe" if sc in _FIXED else "mpe-varying"
 
