@@ -16,7 +16,9 @@ only if they lie pairwise within twice the reach. ``T*`` is the first ``T`` at w
 map from landmarks to agents obeys both conditions (all ``N ** N`` maps are tried; for
 ``N > 6`` a perfect matching of reachable pairs, scipy's ``maximum_bipartite_matching``,
 stands in and ignores shared coverage). Both are necessary conditions, so ``T*`` bounds
-every method's Steps from below.
+every method's Steps from below — in mpe2's update order, the world these findings were made
+in (``--set integration=mpe2 --set landmark_spawn=whole``; the presets are now the paper's
+world, where a push moves the agent one step earlier and ``T*`` is not this bound).
 
 Part 2: every landmark uncovered at the end of an episode, sorted by what happened to it:
 never covered, with or without an obstacle across the straight line from its agent's

@@ -2,12 +2,12 @@
 
 A record (``results/**/*.json`` with ``method``, ``scenario``, ``seeds``...) is the output
 of ``evaluate --json``; running :func:`masp_lite.evaluation.evaluate` again with its
-method, scenario, world definition, seeds, episodes, overrides and options must give the same numbers,
+method, scenario, world definition, seeds, episodes, batch size, overrides and options must give the same numbers,
 exactly (decision time is wall-clock and is not compared). A record made with a weights
 file names it and its SHA-256; the file must still be there, unchanged.
 
-Re-evaluating the slow planners on mpe-50 takes minutes each, so by default only the
-records whose estimated cost (decision time x steps) is under ``BUDGET_S`` run here;
+Re-evaluating the slow planners on mpe-50, or 100 and 200 agents, takes minutes each, so by
+default only the records whose estimated cost (decision and world time x steps) is under ``BUDGET_S`` run here;
 ``MASP_LITE_ALL_RECORDS=1`` runs every one of them (about half an hour on one core).
 """
 import json
@@ -36,9 +36,14 @@ def _records():
 RECORDS = _records()
 
 
+ENV_S_PER_AGENT = 1e-5  # the world's own cost per agent and world-step, batched (a rough figure for this machine)
+
+
 def _cost_s(rec) -> float:
+    """Seconds a re-evaluation takes, roughly: the recorded decision time plus the world's, over every world-step."""
     sc = get_scenario(rec["scenario"], **rec.get("overrides", {}))
-    return rec["decision_ms"]["mean"] / 1e3 * rec["episodes_per_seed"] * len(rec["seeds"]) * sc.horizon
+    per_step = rec["decision_ms"]["mean"] / 1e3 + ENV_S_PER_AGENT * sc.num_agents
+    return per_step * rec["episodes_per_seed"] * len(rec["seeds"]) * sc.horizon
 
 
 def test_the_records_are_found_and_name_their_world():
@@ -59,7 +64,7 @@ def test_record_re_evaluates_identically(path, rec, monkeypatch):
         monkeypatch.chdir(ROOT)  # checkpoint paths are relative to the repository root
     overrides = {**rec["world"], **rec.get("overrides", {})}  # the world it was made in, whatever the preset's
     again = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
-                     overrides=overrides, method_options=options)
+                     overrides=overrides, method_options=options, num_envs=rec.get("num_envs"))  # batches: as made
     for key in ("sr", "steps", "cr"):
         assert again[key] == rec[key], f"{key}: {again[key]} now, {rec[key]} in {path.name}"
 

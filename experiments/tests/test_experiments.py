@@ -5,7 +5,7 @@ import torch
 
 from experiments import mpe5_distill, mpe5_failures, mpe5_oracle
 from masp_lite.algos.assignment import hungarian
-from masp_lite.envs import make
+from masp_lite.envs import MPE2_WORLD, make
 from masp_lite.weights import load_weights
 
 
@@ -20,8 +20,9 @@ def oracle():
 
 
 def _push_x(steps):
-    """x of one agent from rest at the origin after ``steps`` steps of the +x action."""
-    w = make("mpe-5", num_envs=1, num_agents=1, num_obstacles=0, seed=0)
+    """x of one agent from rest at the origin after ``steps`` steps of the +x action, in mpe2's order (the
+    world ``mpe5_failures`` models)."""
+    w = make("mpe-5", num_envs=1, num_agents=1, num_obstacles=0, seed=0, **MPE2_WORLD)
     w.reset(options={"agent_pos": torch.zeros(1, 2), "landmark_pos": torch.tensor([[0.9, 0.9]])})
     for _ in range(steps):
         w.step(torch.tensor([[2]]))

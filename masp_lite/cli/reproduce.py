@@ -4,7 +4,7 @@ Prints the paper's tables with ours beside the paper's (:mod:`masp_lite.evaluati
 then its MPE claims checked on the same records (``--table claims``): from the records in
 ``results/`` (seconds), or ``--evaluate`` — every registered method of the table with its
 shipped weights, 3 seeds × 100 episodes (about 30 minutes for "mpe" on one core, most of it
-the planners on mpe-50) — or ``--quick``, 3 seeds × 4 episodes (53 s for "mpe" on one core),
+the planners on mpe-50) — or ``--quick``, 3 seeds × 4 episodes (60 s for "mpe" on one core),
 for a first look and for tests.
 """
 from __future__ import annotations
