@@ -41,7 +41,8 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     ``method_options`` sets it), so a random policy draws differently per seed and a
     learned method can load the checkpoint trained with seed ``s``. ``checkpoint`` is
     passed as the option ``checkpoint``. ``num_envs`` caps the batch (default
-    ``min(episodes, MAX_ENVS)``).
+    ``min(episodes, MAX_ENVS)``); spawns are drawn per batch, so the same seed in another
+    batch size gives other episodes (a record keeps ``num_envs`` so that it can be re-made).
 
     Returns the ``evaluate --json`` record: ``method``, ``scenario``, ``seeds``,
     ``episodes_per_seed`` and ``sr``/``steps``/``cr``/``decision_ms`` as ``{"mean", "std"}``.
