@@ -239,9 +239,17 @@ def ship_zero_shot(weights_dir, scenario: str, source: str, note: str) -> dict:
     if source not in manifest or manifest[source].get("trained_on"):
         raise ValueError(f"ship_zero_shot: expected shipped weights trained on {source!r}; the manifest has "
                          f"{sorted(k for k, v in manifest.items() if not v.get('trained_on'))}")
-    manifest[scenario] = {**manifest[source], "scenario": scenario, "trained_on": source, "note": note}
-    atomic_write_bytes(manifest_path, (json.dumps(manifest, indent=2, sort_keys=True) + "\n").encode())
+    manifest[scenario] = _zero_shot_entry(manifest, scenario, source, note)
+    _write_json(manifest_path, manifest)
     return manifest[scenario]
+
+
+def _zero_shot_entry(manifest: dict, scenario: str, source: str, note: str) -> dict:
+    return {**manifest[source], "scenario": scenario, "trained_on": source, "note": note}
+
+
+def _write_json(path, obj) -> None:
+    atomic_write_bytes(path, (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode())
 
 
 def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dict | None = None,
@@ -285,8 +293,7 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
     history = {"scenario": name, "world": trained_world(rec), "seed": seed, "file": file, "sha256": digest,
                "arch": rec["arch"],
                "evaluation": evaluation, "note": note, "stages": stages}
-    atomic_write_bytes(history_dir / f"{stem}.manifest.json",
-                       (json.dumps(history, indent=2, sort_keys=True) + "\n").encode())
+    _write_json(history_dir / f"{stem}.manifest.json", history)
     if weights_dir is not None:
         manifest_path = Path(weights_dir) / "manifest.json"
         manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
@@ -299,6 +306,6 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
                           "machine": runs[-1]["machine"], "history": f"results/training/{stem}.manifest.json"}
         for other, entry in manifest.items():  # presets that ship these weights zero-shot follow them
             if entry.get("trained_on") == name:
-                manifest[other] = {**manifest[name], "scenario": other, "trained_on": name, "note": entry["note"]}
-        atomic_write_bytes(manifest_path, (json.dumps(manifest, indent=2, sort_keys=True) + "\n").encode())
+                manifest[other] = _zero_shot_entry(manifest, other, name, entry["note"])
+        _write_json(manifest_path, manifest)
     return history

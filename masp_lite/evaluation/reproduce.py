@@ -81,12 +81,16 @@ def load_records(root=RESULTS_DIR) -> list[dict]:
     return out
 
 
-def _plain(rec: dict) -> bool:
-    """A record of the method as shipped: no options, no overrides beyond the world definition,
-    evaluated in batches (a record of one world at a time, ``num_envs`` 1, is a timing record
-    that only the per-step-time table reads)."""
+def _preset_batched(rec: dict) -> bool:
+    """No overrides beyond the world definition, evaluated in batches (a record of one world at a
+    time, ``num_envs`` 1, is a timing record that only the per-step-time table reads)."""
     extra = set(rec.get("overrides", {})) - {"integration", "landmark_spawn"}
-    return not rec.get("method_options") and not extra and not rec.get("bench") and rec.get("num_envs") != 1
+    return not extra and not rec.get("bench") and rec.get("num_envs") != 1
+
+
+def _plain(rec: dict) -> bool:
+    """A record of the method as shipped: no options, the preset, batched."""
+    return not rec.get("method_options") and _preset_batched(rec)
 
 
 def training_seed(rec: dict) -> int | None:
@@ -97,9 +101,8 @@ def training_seed(rec: dict) -> int | None:
     ``results/training/BASE-seedK.pt`` (the kept weights of training seed K of the scenario's
     preset, or of the preset whose weights it runs zero-shot: :func:`masp_lite.weights.trained_preset`)
     is K."""
-    extra = set(rec.get("overrides", {})) - {"integration", "landmark_spawn"}
     opts = rec.get("method_options", {})
-    if extra or rec.get("bench") or rec.get("num_envs") == 1:
+    if not _preset_batched(rec):
         return None
     if not opts:
         return int(read_manifest().get(base_scenario(rec["scenario"]), {}).get("seed", 0))
@@ -147,17 +150,18 @@ def pick(records, method: str, scenario: str) -> dict | None:
     world = get_scenario(scenario).world
     mine = [r for r in records if r["method"] == method and r["scenario"] == scenario and r.get("world", {}) == world]
     by_seed = {}
-    for r in mine:
-        if _learned(method) and training_seed(r) is not None:
-            by_seed.setdefault(training_seed(r), []).append(r)
-    found = [r for r in mine if _plain(r)] if not by_seed else [rs[0] for rs in by_seed.values()]
-    clash = [rs for rs in by_seed.values() if len(rs) > 1] or ([found] if len(found) > 1 and not by_seed else [])
-    if clash:
-        raise ValueError(f"reproduce: {len(clash[0])} records of {method} on {scenario}: "
-                         f"{[r.get('path') for r in clash[0]]}; expected one")
+    if _learned(method):
+        for r in mine:
+            if training_seed(r) is not None:
+                by_seed.setdefault(training_seed(r), []).append(r)
+    groups = list(by_seed.values()) if by_seed else [[r for r in mine if _plain(r)]]
+    for found in groups:
+        if len(found) > 1:
+            raise ValueError(f"reproduce: {len(found)} records of {method} on {scenario}: "
+                             f"{[r.get('path') for r in found]}; expected one")
     if len(by_seed) > 1:
         return {**pool([by_seed[k][0] for k in sorted(by_seed)]), "training_seeds": sorted(by_seed)}
-    return found[0] if found else None
+    return groups[0][0] if groups[0] else None
 
 
 def _metric_table(name, title, scenarios, columns, records, latex):
