@@ -84,6 +84,19 @@ def test_training_seeds_are_pooled_exactly():
     assert rp.pool([a, unsolved])["steps"]["mean"] == (20.0 + 45) / 2
 
 
+def test_another_recipes_seeds_are_kept_apart():
+    shipped = _rec("masp", "mpe-50", 50.0)
+    f0, f1 = (_rec("masp", "mpe-50", x, method_options={"checkpoint": f"results/training/faithful/mpe-20-seed{k}.pt"})
+              for k, x in ((0, 60.0), (1, 64.0)))
+    assert [rp.training_seed(r) for r in (shipped, f0, f1)] == [0, None, None]    # not the shipped recipe's
+    assert [rp.training_seed(r, rp.FAITHFUL) for r in (shipped, f0, f1)] == [None, 0, 1]
+    assert rp.pick([shipped, f0, f1], "masp", "mpe-50")["steps"]["mean"] == 50.0
+    assert rp.pick([shipped, f0], "masp", "mpe-50", rp.FAITHFUL)["training_seeds"] == [0]   # one seed: still named
+    text = rp.render(rp.build("faithful", [shipped, f0, f1]), "text")
+    assert "50.00 (1.00)" in text and "62.00 (" in text and "eq. 1 as written: mean over training seeds 0, 1" in text
+    assert rp.pick([shipped], "masp", "mpe-50", rp.FAITHFUL) is None
+
+
 def test_claims_are_computed_from_the_records():
     records = [_rec("masp", "mpe-50", 40.0), _rec("h-orca", "mpe-50", 60.0), _rec("h-rrtstar", "mpe-50", 50.0),
                _rec("h-voronoi", "mpe-50", 48.0), _rec("h-greedy", "mpe-50", 39.0)]

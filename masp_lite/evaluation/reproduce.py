@@ -93,21 +93,22 @@ def _plain(rec: dict) -> bool:
     return not rec.get("method_options") and _preset_batched(rec)
 
 
-def training_seed(rec: dict) -> int | None:
+def training_seed(rec: dict, kept: str = "") -> int | None:
     """The training seed behind a learned method's record, or None for anything else.
 
     A record of the shipped weights (no options) is the shipped file's seed (the manifest's;
     0 when nothing is shipped); a record whose only option is ``checkpoint`` =
     ``results/training/BASE-seedK.pt`` (the kept weights of training seed K of the scenario's
     preset, or of the preset whose weights it runs zero-shot: :func:`masp_lite.weights.trained_preset`)
-    is K."""
+    is K. With ``kept`` (a folder under ``results/training/``, e.g. ``"faithful/"``), only
+    ``results/training/KEPT/BASE-seedK.pt`` counts: the training seeds of another recipe."""
     opts = rec.get("method_options", {})
     if not _preset_batched(rec):
         return None
     if not opts:
-        return int(read_manifest().get(base_scenario(rec["scenario"]), {}).get("seed", 0))
+        return None if kept else int(read_manifest().get(base_scenario(rec["scenario"]), {}).get("seed", 0))
     m = re.fullmatch(r"results/training/(.+)-seed(\d+)\.pt", str(opts.get("checkpoint", "")))
-    if set(opts) == {"checkpoint"} and m and m.group(1) == trained_preset(rec["scenario"]):
+    if set(opts) == {"checkpoint"} and m and m.group(1) == kept + trained_preset(rec["scenario"]):
         return int(m.group(2))
     return None
 
@@ -140,28 +141,29 @@ def pool(records) -> dict:
     return out
 
 
-def pick(records, method: str, scenario: str) -> dict | None:
+def pick(records, method: str, scenario: str, kept: str = "") -> dict | None:
     """The record of ``method`` on the preset ``scenario`` in the preset's world, or None.
 
     A record from another world definition is never taken; two candidates are one clear
     error (the table would otherwise depend on file order). A learned method's records of
     several training seeds (:func:`training_seed`) are pooled into one (:func:`pool`), with
-    ``training_seeds`` saying which."""
+    ``training_seeds`` saying which. ``kept`` picks the training seeds of another recipe
+    (see :func:`training_seed`); then only those records count."""
     world = get_scenario(scenario).world
     mine = [r for r in records if r["method"] == method and r["scenario"] == scenario and r.get("world", {}) == world]
     by_seed = {}
     if _learned(method):
         for r in mine:
-            if training_seed(r) is not None:
-                by_seed.setdefault(training_seed(r), []).append(r)
-    groups = list(by_seed.values()) if by_seed else [[r for r in mine if _plain(r)]]
+            if training_seed(r, kept) is not None:
+                by_seed.setdefault(training_seed(r, kept), []).append(r)
+    groups = list(by_seed.values()) if by_seed or kept else [[r for r in mine if _plain(r)]]
     for found in groups:
         if len(found) > 1:
             raise ValueError(f"reproduce: {len(found)} records of {method} on {scenario}: "
                              f"{[r.get('path') for r in found]}; expected one")
-    if len(by_seed) > 1:
+    if len(by_seed) > 1 or (kept and by_seed):
         return {**pool([by_seed[k][0] for k in sorted(by_seed)]), "training_seeds": sorted(by_seed)}
-    return groups[0][0] if groups[0] else None
+    return groups[0][0] if groups and groups[0] else None
 
 
 def _metric_table(name, title, scenarios, columns, records, latex):
@@ -212,6 +214,34 @@ def table_time(records, latex=False) -> Table:
 
 _PLANNERS = ("h-orca", "h-rrtstar", "h-voronoi")
 _FIXED, _VARYING = ("mpe-5", "mpe-20", "mpe-50"), ("mpe-20to10", "mpe-50to20")
+
+
+#: Where the training seeds of MASP with eq. 1 as written are kept (``results/training/faithful/``).
+FAITHFUL = "faithful/"
+
+
+def table_faithful(records, latex=False) -> Table:
+    """MASP as shipped beside MASP with the Goal Matcher's reward exactly as eq. 1 writes it.
+
+    The shipped weights end with stages whose R_GM reference is Hungarian on *squared*
+    distances (:attr:`masp_lite.config.RewardConfig.gm_reference`); the faithful recipe
+    trains mpe-20 from scratch with the reference on distances throughout and runs every
+    other preset zero-shot (its weights: ``results/training/faithful/mpe-20-seedK.pt``).
+    Columns: shipped, faithful, and h-bottleneck (the min–max assignment) for scale; the
+    paper row holds the paper's MASP under both MASP columns."""
+    columns = (("masp", ""), ("masp", FAITHFUL), ("h-bottleneck", ""))
+    head = ["Agents", "Metric", "", "MASP (shipped)", "MASP (eq. 1 as written)", "h-bottleneck"]
+    rows, notes = [], []
+    for sc in _FIXED + _VARYING:
+        ours = [pick(records, m, sc, kept) for m, kept in columns]
+        paper = PAPER["mpe" if sc in _FIXED else "mpe-varying"].get((sc, "masp"))
+        for i, (key, label) in enumerate((("steps", "Steps ↓"), ("sr", "SR ↑"), ("cr", "CR ↓"))):
+            rows.append([sc if i == 0 else "", label, "ours", *(cell(r[key], latex) if r else "—" for r in ours)])
+            rows.append(["", "", "paper", *(cell(paper[key], latex) if paper else "",) * 2, ""])
+        notes += [f"{sc}, {name}: mean over training seeds {', '.join(map(str, r['training_seeds']))}"
+                  for name, r in zip(("shipped", "eq. 1 as written"), ours) if r and "training_seeds" in r]
+    return Table("faithful", "MASP: shipped weights and eq. 1 as written", get_scenario("mpe-20").world,
+                 head, rows, notes)
 
 
 def _steps(rec):
@@ -302,7 +332,8 @@ def table_claims(records, latex=False) -> Table:
                  ["Claim", "Scenario", "paper", "ours", "holds"], rows)
 
 
-TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "per-step-time": table_time, "claims": table_claims}
+TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "per-step-time": table_time, "claims": table_claims,
+          "faithful": table_faithful}
 
 
 def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress: bool = False) -> list[dict]:
@@ -312,6 +343,12 @@ def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress:
     if table == "claims":  # every record the three tables read
         return [r for t in ("mpe", "mpe-varying", "per-step-time")
                 for r in evaluate_records(t, episodes, seeds, progress)]
+    if table == "faithful":  # the shipped weights, the faithful recipe's kept seeds, h-bottleneck
+        kept = sorted((RESULTS_DIR / "training" / FAITHFUL).glob("mpe-20-seed*.pt"))
+        runs = [("masp", {}), ("h-bottleneck", {}),
+                *(("masp", {"checkpoint": f"results/training/{FAITHFUL}{k.name}"}) for k in kept)]
+        return [evaluate(m, sc, episodes=episodes, seeds=list(seeds), progress=progress, method_options=opts)
+                for sc in _FIXED + _VARYING for m, opts in runs]
     if table == "per-step-time":
         return [evaluate(m, "mpe-50", episodes=episodes, seeds=list(seeds), num_envs=1, progress=progress)
                 for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
