@@ -28,6 +28,8 @@ __all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig",
 
 GM_REFERENCES = ("distance", "squared", "bottleneck")
 """The settings of :attr:`RewardConfig.gm_reference`."""
+GOAL_MATCHERS, EXECUTORS = ("graph", "mlp", "random"), ("graph", "mlp")
+"""The settings of :attr:`NetConfig.goal_matcher` and :attr:`NetConfig.executor`."""
 
 
 def _check(obj, name, low=None, high=None, integer=False):
@@ -56,11 +58,31 @@ class NetConfig:
     """Nearest obstacles the executor sees."""
     global_step: int = 3
     """Environment steps per Goal Matcher decision (3 in the paper)."""
+    goal_matcher: str = "graph"
+    """The high level (the paper's ablations): ``graph``, MASP's Goal Matcher; ``mlp``, "GM w.o.
+    Graph" (:class:`~masp_lite.nets.ablations.GoalMatcherMLP`); ``random``, "MASP w. RG": distinct
+    random goals, no Goal Matcher trained."""
+    executor: str = "graph"
+    """The executor's view of the other agents: ``graph``, the Group Information Fusion;
+    ``mlp``, "CAE w.o. Graph" (:class:`~masp_lite.nets.ablations.FusionMLP`)."""
+    team_size: int = 0
+    """Agents an ``mlp`` variant is built for (its input size is fixed); 0 for the graph networks,
+    which serve any team size. Training sets it to the scenario's team size."""
 
     def __post_init__(self):
         for name in ("width", "gcn_layers", "obstacles_seen", "global_step"):
             _check(self, name, 1, integer=True)
         _check(self, "group_size", 2, integer=True)
+        _check(self, "team_size", 0, integer=True)
+        if self.goal_matcher not in GOAL_MATCHERS:
+            raise ValueError(f"goal_matcher: expected one of {list(GOAL_MATCHERS)}, got {self.goal_matcher!r}")
+        if self.executor not in EXECUTORS:
+            raise ValueError(f"executor: expected one of {list(EXECUTORS)}, got {self.executor!r}")
+
+    @property
+    def fixed_size(self) -> bool:
+        """Whether a network takes a fixed number of agents (an ``mlp`` variant)."""
+        return "mlp" in (self.goal_matcher, self.executor)
 
 
 @dataclass

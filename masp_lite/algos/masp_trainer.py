@@ -22,14 +22,21 @@ end; the critics see the time left. GAE runs per level on its own time axis (glo
 steps for the Goal Matcher), then :func:`~masp_lite.algos.mappo.ppo_update` trains each
 level (only the Goal Matcher when ``train_executor`` is off: a fine-tuning stage that
 leaves the executor, its critic and its value normalisation untouched).
+
+The ablations are settings of the same trainer (:class:`~masp_lite.config.NetConfig`):
+``goal_matcher="random"`` ("MASP w. RG") draws distinct random goals when an episode starts
+(and again when the team changes) and trains only the executor; the ``mlp`` variants are
+built for the scenario's team size (``team_size`` is set from it).
 """
 from __future__ import annotations
+
+import dataclasses
 
 import torch
 
 from ..config import TrainConfig
 from ..envs import make
-from ..nets.decoding import conditional_logits, sequential_sample
+from ..nets.decoding import conditional_logits, random_goals, sequential_sample
 from ..nets.masp import MASPNets
 from .mappo import RolloutStorage, ValueNorm, gae, ppo_update
 from .rewards import executor_reward, goal_matcher_reward
@@ -57,6 +64,13 @@ class MASPTrainer:
         if sc.kind != "particle":
             raise ValueError(f"masp training: expected a particle scenario, got {sc.name!r}")
         self.scale, self.horizon, self.reach = sc.world_size / 2, sc.horizon, sc.reach_distance
+        if cfg.net.fixed_size:  # an mlp variant: built for this team size
+            if cfg.net.team_size not in (0, self.world.num_agents):
+                raise ValueError(f"team_size: the mlp variant is set to {cfg.net.team_size} agents, the scenario "
+                                 f"{sc.name!r} has {self.world.num_agents}")
+            cfg = self.cfg = dataclasses.replace(cfg, net=dataclasses.replace(cfg.net,
+                                                                              team_size=self.world.num_agents))
+        self.random_goals = cfg.net.goal_matcher == "random"
         torch.manual_seed(self.seed)  # network initialisation
         self.nets = MASPNets(cfg.net)
         n = self.nets
@@ -74,12 +88,17 @@ class MASPTrainer:
         w, n, cfg, g = self.world, self.nets, self.cfg, self.generator
         obs = w.reset()
         gm, cae = RolloutStorage(), RolloutStorage()
-        goals = None
+        goals, drawn_for = None, None
         cov, col = [obs["covered"].all(-1)], []
         B, N = w.num_envs, w.num_agents
         for t in range(self.horizon):
             snap = {k: obs[k].clone() for k in OBS_KEYS}
-            if t % cfg.net.global_step == 0:
+            if self.random_goals:  # "MASP w. RG": a random assignment, redrawn only when the team changes
+                if goals is None or not torch.equal(obs["alive"], drawn_for):
+                    goal_mask = ~obs["reached"] if w.scenario.varying else None
+                    goals, drawn_for = random_goals(obs["alive"], obs["landmark_pos"].shape[1], g, goal_mask), \
+                        obs["alive"].clone()
+            elif t % cfg.net.global_step == 0:
                 logits = n.gm_logits(obs, self.scale)
                 goals, logp, rank = sequential_sample(logits, obs["alive"], g)
                 v = n.gm_value(obs, self.scale, self.horizon)
@@ -106,7 +125,8 @@ class MASPTrainer:
         first = torch.where(solved, torch.arange(self.horizon + 1), self.horizon).min(1).values
         stats = {"sr": float(obs["covered"].float().mean()), "steps": float(first.float().mean()),
                  "cr": float(torch.stack(col, 1).float().mean())}
-        return self._advantages(gm.stacked(), self.gm_norm, cfg.ppo.gm_gamma), \
+        gm_data = None if self.random_goals else self._advantages(gm.stacked(), self.gm_norm, cfg.ppo.gm_gamma)
+        return gm_data, \
             self._advantages(cae.stacked(), self.cae_norm, cfg.ppo.gamma, update=cfg.run.train_executor), stats
 
     def _advantages(self, data, norm: ValueNorm, gamma: float, update: bool = True):
@@ -132,16 +152,20 @@ class MASPTrainer:
     def iteration(self) -> dict[str, float]:
         """Collect, update both levels; returns the row logged to ``progress.csv``."""
         gm_data, cae_data, stats = self.collect()
-        r_gm = float(gm_data.pop("reward_mean")[gm_data["mask"]].mean())
         r_cae = float(cae_data.pop("reward_mean")[cae_data["mask"]].mean())
         n, cfg = self.nets, self.cfg
-        s_gm = ppo_update(gm_data, self._gm_eval, n.gm, n.gm_critic, self.gm_opt, cfg.ppo, self.gm_norm,
-                          self.generator, epochs=cfg.ppo.gm_ppo_epochs)
+        nothing = {"policy_loss": float("nan"), "value_loss": float("nan"), "entropy": float("nan")}
+        if gm_data is None:  # random goals: no Goal Matcher to train
+            r_gm, s_gm = float("nan"), dict(nothing)
+        else:
+            r_gm = float(gm_data.pop("reward_mean")[gm_data["mask"]].mean())
+            s_gm = ppo_update(gm_data, self._gm_eval, n.gm, n.gm_critic, self.gm_opt, cfg.ppo, self.gm_norm,
+                              self.generator, epochs=cfg.ppo.gm_ppo_epochs)
         if cfg.run.train_executor:
             s_cae = ppo_update(cae_data, self._cae_eval, n.cae, n.cae_critic, self.cae_opt, cfg.ppo, self.cae_norm,
                                self.generator)
         else:  # executor frozen (Goal Matcher fine-tuning): nothing to report
-            s_cae = {"policy_loss": float("nan"), "value_loss": float("nan"), "entropy": float("nan")}
+            s_cae = dict(nothing)
         self.iterations += 1
         row = {"iteration": self.iterations, "env_steps": self.env_steps, **{f"train_{k}": v for k, v in stats.items()},
                "gm_reward": r_gm, "cae_reward": r_cae}

@@ -34,7 +34,7 @@ import numpy as np
 import torch
 from scipy.optimize import linear_sum_assignment
 
-__all__ = ["DECODERS", "independent_goals", "joint_argmax", "sequential_sample", "conditional_logits",
+__all__ = ["DECODERS", "independent_goals", "random_goals", "joint_argmax", "sequential_sample", "conditional_logits",
            "taken_before", "MASKED"]
 
 DECODERS = ("joint", "independent")
@@ -102,6 +102,18 @@ def sequential_sample(logits: torch.Tensor, alive: torch.Tensor, generator: torc
     logp = torch.log_softmax(conditional_logits(logits, goals, rank, alive, goal_mask), -1)
     logp = torch.gather(logp, -1, goals.unsqueeze(-1)).squeeze(-1)
     return goals, logp, rank
+
+
+def random_goals(alive: torch.Tensor, num_goals: int, generator: torch.Generator,
+                 goal_mask: torch.Tensor | None = None) -> torch.Tensor:
+    """Distinct goals drawn uniformly at random without replacement (B, N): "MASP w. RG".
+
+    :func:`sequential_sample` with equal logits, so an agent left with nothing (more alive
+    agents than allowed goals) and dropped agents are treated alike."""
+    B, N = alive.shape
+    logits = torch.zeros(B, N, num_goals, device=alive.device)
+    return sequential_sample(logits.cpu(), alive.cpu(), generator,
+                             None if goal_mask is None else goal_mask.cpu())[0].to(alive.device)
 
 
 def independent_goals(logits: torch.Tensor, goal_mask: torch.Tensor | None = None) -> torch.Tensor:

@@ -24,7 +24,8 @@
   landmarks covered and reached, time left). Only the actors are needed to act.
 
 All parameters are shared by the agents and every weight acts per node, pair or group,
-so the networks run for any team size. Executor inputs are in metres (MPE's dynamics do
+so the networks run for any team size (the ablations' MLPs, :mod:`masp_lite.nets.ablations`,
+chosen by :class:`~masp_lite.config.NetConfig`, are the exception). Executor inputs are in metres (MPE's dynamics do
 not scale with the map); relative vectors are clipped at ``SENSE`` = 1 m for neighbours
 and obstacles (collisions happen below 0.2 m).
 """
@@ -37,6 +38,7 @@ from torch import nn
 
 from ..config import NetConfig
 from ..envs.particle import NUM_ACTIONS
+from .ablations import FusionMLP, GoalMatcherMLP
 from .encoders import CrossEncoder, SelfEncoder, mlp
 from .fusion import GroupInformationFusion, group_division
 
@@ -191,9 +193,9 @@ class GoalMatcherCritic(_GraphEncoders):
 class CoordinatedActionExecutor(nn.Module):
     """Low-level actor: ``forward(pair, groups, alive, goal_f, obstacle_f) -> logits`` (B, N, 5)."""
 
-    def __init__(self, width: int = 32, gcn_layers: int = 1, obstacles_seen: int = 2):
+    def __init__(self, width: int = 32, gcn_layers: int = 1, obstacles_seen: int = 2, fusion: nn.Module | None = None):
         super().__init__()
-        self.fusion = GroupInformationFusion(PAIR_FEATURES, width, gcn_layers)
+        self.fusion = GroupInformationFusion(PAIR_FEATURES, width, gcn_layers) if fusion is None else fusion
         self.goal_embed = mlp([GOAL_FEATURES, width], last_activation=True)
         self.obstacle_embed = mlp([OBSTACLE_FEATURES * obstacles_seen, width], last_activation=True)
         self.head = mlp([3 * width, width, width, NUM_ACTIONS])
@@ -238,9 +240,14 @@ class MASPNets(nn.Module):
             raise ValueError(f"MASPNets: {e}; expected settings among {sorted(NetConfig.__dataclass_fields__)}") \
                 from None
         c = self.config
-        self.gm = GoalMatcher(c.width)
+        if c.fixed_size and c.team_size < 2:
+            raise ValueError("MASPNets: an mlp variant needs team_size (the agents it is built for), got "
+                             f"{c.team_size}")
+        # "random" keeps a (never trained, never used) Goal Matcher so that every weights file has one layout
+        self.gm = GoalMatcherMLP(c.width, c.team_size) if c.goal_matcher == "mlp" else GoalMatcher(c.width)
         self.gm_critic = GoalMatcherCritic(c.width)
-        self.cae = CoordinatedActionExecutor(c.width, c.gcn_layers, c.obstacles_seen)
+        fusion = FusionMLP(PAIR_FEATURES, c.width, c.team_size) if c.executor == "mlp" else None
+        self.cae = CoordinatedActionExecutor(c.width, c.gcn_layers, c.obstacles_seen, fusion)
         self.cae_critic = ExecutorCritic(c.width)
 
     @property

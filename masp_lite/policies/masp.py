@@ -5,21 +5,35 @@ The networks are :class:`~masp_lite.nets.masp.MASPNets`, loaded from a weights f
 otherwise). Every ``global_step`` environment steps the Goal Matcher's scores become one
 goal per agent (:mod:`masp_lite.nets.decoding`); every step the executor acts towards it
 with a fresh random group division, as in training.
+
+The paper's ablations are the same policy around weights of another
+:class:`~masp_lite.config.NetConfig` (:data:`ABLATIONS`): ``masp-rg`` (random goals),
+``gm-mlp`` and ``cae-mlp`` (an MLP instead of a graph, for one team size). Their weights
+are the kept training seeds ``results/training/VARIANT/mpe-20-seedK.pt`` of a source
+checkout (seed 0 unless ``checkpoint`` says otherwise); ``masp`` refuses them, so a record
+never names the wrong method.
 """
 from __future__ import annotations
+
+from pathlib import Path
 
 import torch
 
 from ..algos.assignment import hungarian
-from ..nets.decoding import DECODERS, joint_argmax, sequential_sample
+from ..nets.decoding import DECODERS, joint_argmax, random_goals, sequential_sample
 from ..nets.masp import MASPNets
 from ..weights import load_weights
 
-__all__ = ["MASPPolicy"]
+__all__ = ["MASPPolicy", "ABLATIONS", "masp_rg", "gm_mlp", "cae_mlp"]
+
+#: The paper's ablations: method name -> the NetConfig settings its weights must have.
+ABLATIONS = {"masp-rg": {"goal_matcher": "random"}, "gm-mlp": {"goal_matcher": "mlp"},
+             "cae-mlp": {"executor": "mlp"}}
+_KEPT = Path(__file__).resolve().parents[2] / "results" / "training"
 
 
 class MASPPolicy:
-    """Trained Goal Matcher + executor on a particle world.
+    """Trained Goal Matcher + executor on a particle world (method ``METHOD``).
 
     ``checkpoint``: a weights file (default: the shipped one for the world's scenario, see
     :mod:`masp_lite.weights`). ``seed`` seeds the random group division. ``global_step``
@@ -35,18 +49,40 @@ class MASPPolicy:
     has more agents than unreached landmarks, heads for its nearest landmark). That is not
     MASP: it is a diagnostic that tells the two levels apart (the executor's share of a
     gap to ``h-greedy`` versus the Goal Matcher's).
+    ``resample`` (random goals only, ``masp-rg``): redraw them every global step; by default
+    they are drawn once per episode (and again when the team changes), the reading of "MASP
+    w. RG" that fits the paper's "consistently assigns different goals" and its SR of 1.
     With a team change (``mpe-20to10``, ...) the success rate counts landmarks ever
     reached, so the Goal Matcher's choice is restricted to landmarks not reached yet (all
     of them once every one has been reached); fixed teams choose among all landmarks.
     """
 
+    METHOD = "masp"
+
     def __init__(self, world, checkpoint: str | None = None, seed: int = 0, global_step: int | None = None,
-                 deterministic: bool = True, any_scenario: bool = False, decode: str = "joint"):
+                 deterministic: bool = True, any_scenario: bool = False, decode: str = "joint",
+                 resample: bool = False):
+        name = self.METHOD
         if getattr(world.scenario, "kind", None) != "particle":
-            raise ValueError("masp: expected a particle world (mpe-* scenario)")
+            raise ValueError(f"{name}: expected a particle world (mpe-* scenario)")
         self.world = world
+        if checkpoint is None and name in ABLATIONS:
+            checkpoint = _KEPT / name / "mpe-20-seed0.pt"
+            if not checkpoint.exists():
+                raise ValueError(f"{name}: no weights given and none kept at results/training/{name}/ (a source "
+                                 "checkout keeps them); pass checkpoint=PATH")
         self.nets, self.meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
         self.nets.eval()
+        c, want = self.nets.config, ABLATIONS.get(name, {"goal_matcher": "graph", "executor": "graph"})
+        got = {k: getattr(c, k) for k in want}
+        if got != want:
+            other = [m for m, v in ABLATIONS.items() if all(getattr(c, k) == x for k, x in v.items())]
+            raise ValueError(f"{name}: the checkpoint's networks are {got}, expected {want}"
+                             + (f"; these are {other[0]} weights: use that method" if other else ""))
+        if c.fixed_size and world.num_agents != c.team_size:
+            raise ValueError(f"{name}: these weights are an MLP built for {c.team_size} agents (a fixed input "
+                             f"size), the scenario has {world.num_agents}; evaluate it at N = {c.team_size} only")
+        self.resample = bool(resample)
         gs = self.nets.arch["global_step"] if global_step is None else global_step
         if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
@@ -59,7 +95,8 @@ class MASPPolicy:
         self.decode = decode
         self.scale = self.world.scenario.world_size / 2
         self.generator = torch.Generator().manual_seed(self.seed)
-        self.goals = None
+        self.goals, self.drawn_for = None, None
+        self.resample = getattr(self, "resample", False)
 
     @classmethod
     def from_nets(cls, world, nets: MASPNets, seed: int = 0, deterministic: bool = True,
@@ -71,7 +108,7 @@ class MASPPolicy:
         return self
 
     def reset(self, obs) -> None:
-        self.goals = None
+        self.goals, self.drawn_for = None, None
 
     def _pick(self, logits):
         if self.deterministic:
@@ -94,7 +131,13 @@ class MASPPolicy:
             mask = None
             if self.world.scenario.varying:  # landmarks already reached count for SR; pick among the rest
                 mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
-            if self.decode == "hungarian":  # diagnostic: the Hungarian reference instead of the Goal Matcher
+            if self.nets.config.goal_matcher == "random":  # "MASP w. RG"
+                if self.resample or self.goals is None or not torch.equal(obs["alive"], self.drawn_for):
+                    new = random_goals(obs["alive"], obs["landmark_pos"].shape[1], self.generator, mask)
+                    self.drawn_for = obs["alive"].clone()
+                else:
+                    new = self.goals
+            elif self.decode == "hungarian":  # diagnostic: the Hungarian reference instead of the Goal Matcher
                 new = hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], mask)
                 nearest = torch.cdist(obs["agent_pos"], obs["landmark_pos"]).argmin(-1)
                 new = torch.where(new >= 0, new, nearest)  # agents left without a goal: the nearest landmark
@@ -105,3 +148,14 @@ class MASPPolicy:
         perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(self.goals.device)
         actions = self._pick(self.nets.cae_logits(self.nets.cae_inputs(obs, self.goals, perm)))
         return torch.where(obs["alive"], actions, torch.zeros_like(actions))
+
+
+
+def _ablation(method: str) -> type:
+    """The policy class of one of :data:`ABLATIONS`: :class:`MASPPolicy` that checks its weights' variant."""
+    doc = (f"``{method}``: :class:`MASPPolicy` around weights with {ABLATIONS[method]}; default weights: "
+           f"``results/training/{method}/mpe-20-seed0.pt``.")
+    return type(method.replace("-", "_"), (MASPPolicy,), {"METHOD": method, "__doc__": doc})
+
+
+masp_rg, gm_mlp, cae_mlp = (_ablation(m) for m in ABLATIONS)
