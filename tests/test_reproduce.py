@@ -93,8 +93,21 @@ def test_another_recipes_seeds_are_kept_apart():
     assert rp.pick([shipped, f0, f1], "masp", "mpe-50")["steps"]["mean"] == 50.0
     assert rp.pick([shipped, f0], "masp", "mpe-50", rp.FAITHFUL)["training_seeds"] == [0]   # one seed: still named
     text = rp.render(rp.build("faithful", [shipped, f0, f1]), "text")
-    assert "50.00 (1.00)" in text and "62.00 (" in text and "eq. 1 as written: mean over training seeds 0, 1" in text
+    assert "50.00 (1.00)" in text and "62.00 (" in text and "MASP (eq. 1 as written): mean over training seeds 0, 1" in text
     assert rp.pick([shipped], "masp", "mpe-50", rp.FAITHFUL) is None
+
+
+def test_ablation_tables_put_each_variants_seeds_in_its_column():
+    def kept(method, folder, steps, seed=0):
+        return _rec(method, "mpe-20", steps,
+                    method_options={"checkpoint": f"results/training/{folder}/mpe-20-seed{seed}.pt"})
+    records = [kept("masp-rg", "masp-rg", 31.0), kept("masp", "faithful", 25.0), kept("masp", "faithful", 27.0, 1),
+               kept("masp", "group-size-2", 29.0), _rec("masp", "mpe-20", 20.0)]   # the shipped one: in none
+    ab = rp.build("ab", records)
+    assert ab.rows[0][3:] == ["31.00 (1.00)", "—", "—", "26.00 (1.41)"] and ab.rows[1][3:7] == \
+        ["35.91 (2.73)", "\\", "28.25 (3.21)", "24.41 (2.66)"]
+    assert rp.build("groupsize", records).rows[0][3:] == ["29.00 (1.00)", "26.00 (1.41)", "—"]
+    assert rp.build("globalsteps", records).rows[1][3:] == ["24.23 (2.11)", "24.41 (2.66)", "29.59 (2.43)"]
 
 
 def test_claims_are_computed_from_the_records():

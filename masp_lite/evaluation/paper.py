@@ -1,7 +1,9 @@
 """The paper's numbers, typed in once: every table ``reproduce`` prints beside ours.
 
 Read from the paper's tables "MPE" (``tab: mpe``), "MPE, varying team size"
-(``tab: mpe_varying``) and "per-step time" (``tab: time_table``). :mod:`.reproduce`,
+(``tab: mpe_varying``), "per-step time" (``tab: time_table``) and the ablations at N = 20
+(``tab: ab``, ``tab: groupsize``, ``tab: globalsteps``; their MASP, 24.41 Steps, is another
+run than the 25.61 of "MPE"). :mod:`.reproduce`,
 :mod:`.claims` and the benchmarks read them from here.
 """
 from __future__ import annotations
@@ -55,6 +57,23 @@ PAPER = {
         ("mpe-50to20", "h-rrtstar"): _p(89.18, 4.88, 0.91, 0.01, 0.56, 0.05),
         ("mpe-50to20", "h-voronoi"): _p(88.73, 4.27, 0.91, 0.02, 0.67, 0.03),
         ("mpe-50to20", "masp"): _p(46.49, 4.49, 1.00, 0.00, 0.15, 0.01),
+    },
+    # the ablations, N = 20; groupsize and globalsteps are keyed by the setting's value
+    "ab": {
+        ("mpe-20", "masp-rg"): _p(35.91, 2.73, 1.00, 0.00, 0.25, 0.02),
+        ("mpe-20", "gm-mlp"): _p(None, None, 0.04, 0.01, 3.32, 0.02),
+        ("mpe-20", "cae-mlp"): _p(28.25, 3.21, 1.00, 0.00, 0.17, 0.01),
+        ("mpe-20", "masp"): _p(24.41, 2.66, 1.00, 0.00, 0.14, 0.01),
+    },
+    "groupsize": {
+        ("mpe-20", 2): _p(28.85, 2.12, 1.00, 0.00, 0.15, 0.01),
+        ("mpe-20", 3): _p(24.41, 2.66, 1.00, 0.00, 0.14, 0.01),
+        ("mpe-20", 5): _p(23.78, 2.35, 1.00, 0.00, 0.14, 0.01),
+    },
+    "globalsteps": {
+        ("mpe-20", 1): _p(24.23, 2.11, 1.00, 0.00, 0.12, 0.01),
+        ("mpe-20", 3): _p(24.41, 2.66, 1.00, 0.00, 0.14, 0.01),
+        ("mpe-20", 10): _p(29.59, 2.43, 1.00, 0.00, 0.16, 0.01),
     },
     # per-step time at N = 50, milliseconds (mean, std); the paper names the planners without "(H)"
     "per-step-time": {"h-orca": (39, 6), "h-rrtstar": (456, 10), "h-voronoi": (44, 5), "mappo": (13, 4),

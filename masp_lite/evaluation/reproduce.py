@@ -166,31 +166,40 @@ def pick(records, method: str, scenario: str, kept: str = "") -> dict | None:
     return groups[0][0] if groups and groups[0] else None
 
 
-def _metric_table(name, title, scenarios, columns, records, latex):
-    head = ["Agents", "Metric", "", *(_LABEL[c] for c in columns)]
+def _metric_table(name, title, scenarios, columns, records, latex, paper=None):
+    """Three metric rows per scenario, ours above the paper's, one column per ``(label, method, kept)``.
+
+    ``kept`` picks a recipe's kept training seeds (:func:`pick`); ``paper(scenario, i)`` is
+    column ``i``'s paper cell, or None (default: ``PAPER[name][(scenario, method)]``)."""
+    paper = paper or (lambda sc, i: PAPER[name].get((sc, columns[i][1])))
+    head = ["Agents", "Metric", "", *(c[0] for c in columns)]
     rows, notes = [], []
     for sc in scenarios:
-        ours = [pick(records, c, sc) for c in columns]
-        paper = [PAPER[name].get((sc, c)) for c in columns]
+        ours = [pick(records, m, sc, kept) for _, m, kept in columns]
+        theirs = [paper(sc, i) for i in range(len(columns))]
         for i, (key, label) in enumerate((("steps", "Steps ↓"), ("sr", "SR ↑"), ("cr", "CR ↓"))):
             rows.append([sc if i == 0 else "", label, "ours",
                          *(cell(r[key], latex) if r else "—" for r in ours)])
-            rows.append(["", "", "paper", *(cell(p[key], latex) if p else "" for p in paper)])
-        notes += [f"{sc}, {_LABEL[c]}: mean over training seeds {', '.join(map(str, r['training_seeds']))}"
-                  for c, r in zip(columns, ours) if r and "training_seeds" in r]
+            rows.append(["", "", "paper", *(cell(p[key], latex) if p else "" for p in theirs)])
+        notes += [f"{sc}, {label}: mean over training seeds {', '.join(map(str, r['training_seeds']))}"
+                  for (label, _, _), r in zip(columns, ours) if r and "training_seeds" in r]
     return Table(name, title, get_scenario(scenarios[0]).world, head, rows, notes)
+
+
+def _columns(methods):
+    return [(_LABEL[m], m, "") for m in methods]
 
 
 def table_mpe(records, latex=False) -> Table:
     """Table "MPE" (fixed teams, N = 5, 20, 50): the paper's columns, then our extra baselines."""
     return _metric_table("mpe", "MPE, N = 5 / 20 / 50", ("mpe-5", "mpe-20", "mpe-50"),
-                         _MPE_COLUMNS + _OURS_ONLY, records, latex)
+                         _columns(_MPE_COLUMNS + _OURS_ONLY), records, latex)
 
 
 def table_mpe_varying(records, latex=False) -> Table:
     """Table "MPE, varying team size" (20 => 10, 50 => 20)."""
     return _metric_table("mpe-varying", "MPE, varying team size", ("mpe-20to10", "mpe-50to20"),
-                         ("h-orca", "h-rrtstar", "h-voronoi", "masp") + _OURS_ONLY, records, latex)
+                         _columns(("h-orca", "h-rrtstar", "h-voronoi", "masp") + _OURS_ONLY), records, latex)
 
 
 def table_time(records, latex=False) -> Table:
@@ -229,19 +238,36 @@ def table_faithful(records, latex=False) -> Table:
     other preset zero-shot (its weights: ``results/training/faithful/mpe-20-seedK.pt``).
     Columns: shipped, faithful, and h-bottleneck (the min–max assignment) for scale; the
     paper row holds the paper's MASP under both MASP columns."""
-    columns = (("masp", ""), ("masp", FAITHFUL), ("h-bottleneck", ""))
-    head = ["Agents", "Metric", "", "MASP (shipped)", "MASP (eq. 1 as written)", "h-bottleneck"]
-    rows, notes = [], []
-    for sc in _FIXED + _VARYING:
-        ours = [pick(records, m, sc, kept) for m, kept in columns]
-        paper = PAPER["mpe" if sc in _FIXED else "mpe-varying"].get((sc, "masp"))
-        for i, (key, label) in enumerate((("steps", "Steps ↓"), ("sr", "SR ↑"), ("cr", "CR ↓"))):
-            rows.append([sc if i == 0 else "", label, "ours", *(cell(r[key], latex) if r else "—" for r in ours)])
-            rows.append(["", "", "paper", *(cell(paper[key], latex) if paper else "",) * 2, ""])
-        notes += [f"{sc}, {name}: mean over training seeds {', '.join(map(str, r['training_seeds']))}"
-                  for name, r in zip(("shipped", "eq. 1 as written"), ours) if r and "training_seeds" in r]
-    return Table("faithful", "MASP: shipped weights and eq. 1 as written", get_scenario("mpe-20").world,
-                 head, rows, notes)
+    columns = [("MASP (shipped)", "masp", ""), ("MASP (eq. 1 as written)", "masp", FAITHFUL),
+               ("h-bottleneck", "h-bottleneck", "")]
+
+    def paper(sc, i):
+        return None if i == 2 else PAPER["mpe" if sc in _FIXED else "mpe-varying"].get((sc, "masp"))
+    return _metric_table("faithful", "MASP: shipped weights and eq. 1 as written", _FIXED + _VARYING, columns,
+                         records, latex, paper)
+
+
+#: The ablation tables (N = 20): table -> its columns ``(label, method, kept folder)``. Every variant
+#: is trained with the faithful recipe and one setting changed, so MASP's column is that recipe's.
+ABLATION_TABLES = {
+    "ab": [("MASP w. RG", "masp-rg", "masp-rg/"), ("GM w.o. Graph", "gm-mlp", "gm-mlp/"),
+           ("CAE w.o. Graph", "cae-mlp", "cae-mlp/"), ("MASP", "masp", FAITHFUL)],
+    "groupsize": [("2", "masp", "group-size-2/"), ("3", "masp", FAITHFUL), ("5", "masp", "group-size-5/")],
+    "globalsteps": [("1", "masp", "global-step-1/"), ("3", "masp", FAITHFUL), ("10", "masp", "global-step-10/")],
+}
+_ABLATION_TITLES = {"ab": "Ablations, N = 20", "groupsize": "Group size N_g, N = 20",
+                    "globalsteps": "Global steps, N = 20"}
+
+
+def table_ablation(name: str, records, latex=False) -> Table:
+    """One of the ablation tables ("ab", "groupsize", "globalsteps"): the variants' kept
+    training seeds (``results/training/FOLDER/mpe-20-seedK.pt``) on mpe-20, beside the paper's."""
+    columns = ABLATION_TABLES[name]
+
+    def paper(sc, i):
+        key = columns[i][1] if name == "ab" else int(columns[i][0])
+        return PAPER[name].get((sc, key))
+    return _metric_table(name, _ABLATION_TITLES[name], ("mpe-20",), columns, records, latex, paper)
 
 
 def _steps(rec):
@@ -333,7 +359,9 @@ def table_claims(records, latex=False) -> Table:
 
 
 TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "per-step-time": table_time, "claims": table_claims,
-          "faithful": table_faithful}
+          "faithful": table_faithful,
+          **{name: (lambda records, latex=False, name=name: table_ablation(name, records, latex))
+             for name in ABLATION_TABLES}}
 
 
 def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress: bool = False) -> list[dict]:
@@ -343,12 +371,16 @@ def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress:
     if table == "claims":  # every record the three tables read
         return [r for t in ("mpe", "mpe-varying", "per-step-time")
                 for r in evaluate_records(t, episodes, seeds, progress)]
-    if table == "faithful":  # the shipped weights, the faithful recipe's kept seeds, h-bottleneck
-        kept = sorted((RESULTS_DIR / "training" / FAITHFUL).glob("mpe-20-seed*.pt"))
-        runs = [("masp", {}), ("h-bottleneck", {}),
-                *(("masp", {"checkpoint": f"results/training/{FAITHFUL}{k.name}"}) for k in kept)]
+    if table == "faithful" or table in ABLATION_TABLES:  # kept training seeds of the source checkout
+        columns = [("", "masp", ""), ("", "masp", FAITHFUL), ("", "h-bottleneck", "")] if table == "faithful" \
+            else ABLATION_TABLES[table]
+        runs = []
+        for _, method, kept in columns:
+            found = sorted((RESULTS_DIR / "training" / kept).glob("mpe-20-seed*.pt")) if kept else [None]
+            runs += [(method, {} if k is None else {"checkpoint": f"results/training/{kept}{k.name}"}) for k in found]
+        scenarios = _FIXED + _VARYING if table == "faithful" else ("mpe-20",)
         return [evaluate(m, sc, episodes=episodes, seeds=list(seeds), progress=progress, method_options=opts)
-                for sc in _FIXED + _VARYING for m, opts in runs]
+                for sc in scenarios for m, opts in runs]
     if table == "per-step-time":
         return [evaluate(m, "mpe-50", episodes=episodes, seeds=list(seeds), num_envs=1, progress=progress)
                 for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
