@@ -100,3 +100,21 @@ def test_random_goals_are_distinct_and_held_unless_resampled(tmp_path):
             obs, _ = world.step(torch.zeros(8, 5, dtype=torch.long))
         assert all(sorted(g.tolist()) == list(range(5)) for g in seen[0])              # a permutation per world
         assert all(torch.equal(seen[0], s) for s in seen) == held
+
+
+def test_curves_of_kept_seeds_are_banded(tmp_path):
+    import matplotlib
+    matplotlib.use("Agg")
+    from masp_lite.viz.progress import kept_curves, plot_seed_bands
+    folder = tmp_path / "results" / "training" / "v"
+    folder.mkdir(parents=True)
+    for seed, sr in ((0, 0.2), (1, 0.4)):
+        rows = "".join(f"{i},{i * 100},{sr + 0.01 * i}\n" for i in range(1, 11))
+        (folder / f"mpe-20-seed{seed}.progress.csv").write_text("iteration,env_steps,train_sr\n" + rows)
+    (folder / "mpe-20-seed2.stage1.progress.csv").write_text("iteration,env_steps,train_sr\n1,100,0.5\n")  # not a seed
+    curves = kept_curves("v", root=tmp_path)
+    assert sorted(curves) == [0, 1] and kept_curves("none", root=tmp_path) == {}
+    ax = plot_seed_bands({"v": curves, "empty": {}}, smooth=3)
+    (line,) = ax.get_lines()
+    assert len(line.get_xdata()) == 8 and line.get_ydata()[0] == pytest.approx(0.32)   # mean of 0.22 and 0.42
+    assert len(ax.collections) == 1 and "2 seeds" in line.get_label()
