@@ -5,8 +5,10 @@ its run folder (``python -m masp_lite train`` defaults to ``runs/masp-SCENARIO-s
 
 * ``state.pt`` — the full training state (weights, optimizers, value norms, every RNG
   state), saved atomically (temporary file + ``os.replace``) every ``checkpoint_every``
-  iterations; ``--resume`` continues from it and ends with exactly the parameters an
-  uninterrupted run would have (the RNG states make the rest of the run identical);
+  iterations, after the two files below, so that a run stopped at any moment (Ctrl-C,
+  a kill) leaves a whole state that agrees with them; ``--resume`` continues from it and
+  ends with exactly the parameters an uninterrupted run would have (the RNG states make
+  the rest of the run identical);
 * ``weights.pt`` — the latest networks in the shipped format (:mod:`masp_lite.weights`);
 * ``progress.csv`` — one row per iteration: env steps, wall-clock, training SR/Steps/CR,
   mean rewards, losses and entropies of both levels, and the periodic evaluation
@@ -47,7 +49,8 @@ from .evaluation import collision_rate, rollout, steps, success_rate
 from .policies.masp import MASPPolicy
 from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256, trained_world
 
-__all__ = ["train", "parse_config", "evaluate_nets", "ship_run", "ship_zero_shot", "CSV_FIELDS", "EVAL_SEED"]
+__all__ = ["train", "parse_config", "evaluate_nets", "checkpoint_iterations", "ship_run", "ship_zero_shot",
+           "CSV_FIELDS", "EVAL_SEED"]
 
 CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward",
               "gm_policy_loss", "gm_value_loss", "gm_entropy", "cae_policy_loss", "cae_value_loss", "cae_entropy",
@@ -103,6 +106,24 @@ def _read_csv(path: Path, upto: int) -> list[dict]:
         return [r for r in csv.DictReader(f) if int(r["iteration"]) <= upto]
 
 
+def _bar_text(row: dict, rows: list[dict]) -> str:
+    """The progress bar's note: this iteration's training rollouts (sampled actions) and the last evaluation."""
+    text = (f"training rollouts (sampled): SR {row['train_sr']:.2f} Steps {row['train_steps']:.1f} "
+            f"CR {row['train_cr']:.2f}")
+    last = next((r for r in reversed(rows) if r.get("eval_sr") not in (None, "")), None)
+    if last is not None:
+        text += f" | evaluation (deterministic) at {last['iteration']}: SR {float(last['eval_sr']):.2f}"
+    return text
+
+
+def checkpoint_iterations(out) -> int | None:
+    """Iterations done in the training state of run folder ``out``; ``None`` when there is none yet.
+
+    The state is read in full, as ``resume`` reads it: a file that does not load is a ValueError."""
+    path = Path(out) / "state.pt"
+    return int(_load_state(path)["iterations"]) if path.exists() else None
+
+
 def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = False, init=None,
           overrides: dict | None = None, progress: bool = True, command: str | None = None,
           on_iteration=None) -> dict:
@@ -144,13 +165,13 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
     wall = lambda: wall_before + time.perf_counter() - t0  # noqa: E731
     sc = trainer.world.scenario.name
 
-    def save():
+    def save():  # state.pt last: a run stopped between the three files resumes from the previous state
         st = trainer.state_dict()
         st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started,
                   command=first_command or command or default_command, init=str(init) if init is not None else "")
-        _save_state(state_path, st)
-        save_weights(out / "weights.pt", trainer.nets, trainer.world.scenario)
         _write_csv(out / "progress.csv", rows)
+        save_weights(out / "weights.pt", trainer.nets, trainer.world.scenario)
+        _save_state(state_path, st)
 
     bar = None
     if progress:
@@ -166,8 +187,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
             rows.append({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
             if bar is not None:
                 bar.update(1)
-                bar.set_postfix(sr=f"{row['train_sr']:.2f}", steps=f"{row['train_steps']:.1f}",
-                                cr=f"{row['train_cr']:.2f}")
+                bar.set_postfix_str(_bar_text(row, rows))
             if trainer.iterations % cfg.run.checkpoint_every == 0 or trainer.iterations == cfg.run.updates:
                 save()
             if on_iteration is not None:

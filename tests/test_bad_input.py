@@ -128,9 +128,9 @@ def test_dropped_agent_may_not_act():
     ({"obstacle_pos": np.zeros((6, 2))}, "obstacle_pos.*shape"),
     ({"agent_vel": np.zeros(10)}, "agent_vel.*shape"),
     ({"agent_pos": np.full((5, 2), np.nan)}, "finite"),
-    ({"agent_pos": np.array([[0, 0], [0.1, 0], [0.6, 0], [0.9, 0], [-0.6, 0]])}, "agents overlap"),
+    ({"agent_pos": np.array([[0, 0], [0, 0], [0.6, 0], [0.9, 0], [-0.6, 0]])}, "same point"),  # overlap is fine
     ({"agent_pos": np.array([[0, 0], [0.3, 0], [0.6, 0], [0.9, 0], [-0.6, 0]]),
-      "obstacle_pos": np.array([[0.0, 0.15], [0, 0.6], [0, -0.6], [0.6, 0.6], [-0.6, -0.6]])}, "obstacle"),
+      "obstacle_pos": np.array([[0.0, 0.0], [0, 0.6], [0, -0.6], [0.6, 0.6], [-0.6, -0.6]])}, "centre of an obstacle"),
     ({"obstacle_pos": np.zeros((5, 2))}, "obstacles overlap"),
     ({"keep": np.ones(5)}, "keep"),
 ])
@@ -191,3 +191,71 @@ def test_bench_env_smoke(tmp_path, capsys):
     assert all(v > 0 for v in result["masp_agent_steps_per_s"].values())
     if result["mpe2_agent_steps_per_s"] is not None:
         assert "ratio" in text and result["ratio"]["worlds"] == 4
+
+
+# ------------------------------------------------------------------ checkpoint files
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    """A real run folder (state.pt, weights.pt) of a one-iteration training run on mpe-5."""
+    from masp_lite.config import TrainConfig
+    from masp_lite.training import train
+    out = tmp_path_factory.mktemp("run")
+    cfg = TrainConfig.from_flat(dict(num_envs=2, updates=1, checkpoint_every=1, eval_every=0, eval_episodes=1,
+                                     ppo_epochs=1, num_minibatches=1, width=8))
+    train("mpe-5", cfg, out, progress=False)
+    return out
+
+
+def evaluate_error(capsys, checkpoint, scenario="mpe-5"):
+    """The error line of ``evaluate --method masp --checkpoint ...`` (exit status 2, no traceback)."""
+    assert main(["evaluate", "--method", "masp", "--scenario", scenario, "--episodes", "1", "--seeds", "0",
+                 "--checkpoint", str(checkpoint)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: checkpoint ") and "Traceback" not in err
+    assert "scenario overrides are" not in err  # the overrides list belongs to misspelt keys, not to files
+    return err
+
+
+def test_a_training_state_is_named_and_the_weights_file_suggested(run_dir, capsys):
+    from masp_lite.weights import load_weights
+    err = evaluate_error(capsys, run_dir / "state.pt")
+    assert "this is a training state" in err and "pass the run's weights.pt" in err
+    with pytest.raises(ValueError, match="training state"):
+        load_weights(run_dir / "state.pt")
+    load_weights(run_dir / "weights.pt", scenario="mpe-5")  # the file it points to loads
+
+
+def test_a_text_or_empty_file_is_not_a_torch_file(tmp_path, capsys):
+    (tmp_path / "notes.txt").write_text("hello, not weights\n")
+    assert "not a torch file" in evaluate_error(capsys, tmp_path / "notes.txt")
+    (tmp_path / "empty.pt").write_bytes(b"")
+    assert "the file is empty" in evaluate_error(capsys, tmp_path / "empty.pt")
+
+
+def test_torch_reason_is_whole_words_of_its_first_sentence(run_dir, tmp_path, capsys):
+    import fractions
+    (tmp_path / "cut.pt").write_bytes((run_dir / "weights.pt").read_bytes()[:1000])
+    torch.save({"x": fractions.Fraction(1, 3)}, tmp_path / "pickled.pt")   # an object weights_only refuses
+    for path, kind in ((tmp_path / "cut.pt", "RuntimeError"), (tmp_path / "pickled.pt", "UnpicklingError")):
+        err = evaluate_error(capsys, path)
+        reason = err.split(f"could not read it ({kind}: ", 1)[1].rstrip().removesuffix(")")
+        try:
+            torch.load(path, weights_only=True)
+        except Exception as e:  # noqa: BLE001  (the message torch gives, to compare with)
+            full = " ".join(str(e).split())
+        words = reason.removesuffix(" ...").split()
+        assert words and " ".join(words) in full
+        after = full.split(" ".join(words), 1)[1]
+        assert after == "" or after[0] in " .", f"cut mid-word: {reason!r}"
+        assert "\x1b" not in reason and len(reason) <= 200
+    assert "fractions.Fraction" in err and "do those steps only" not in err  # the object, not the advice
+
+
+def test_wrong_scenario_hint_has_the_command_line_and_python_spellings(run_dir, capsys):
+    from masp_lite.weights import load_weights
+    err = evaluate_error(capsys, run_dir / "weights.pt", scenario="mpe-20")
+    assert "was trained for 'mpe-5'" in err and "--set any_scenario=true" in err
+    with pytest.raises(ValueError, match="any_scenario=True in Python"):
+        load_weights(run_dir / "weights.pt", scenario="mpe-20")
+    assert main(["evaluate", "--method", "masp", "--scenario", "mpe-20", "--episodes", "1", "--seeds", "0",
+                 "--set", "horizon=2", "--checkpoint", str(run_dir / "weights.pt"), "--set", "any_scenario=true"]) == 0

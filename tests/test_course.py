@@ -1,5 +1,6 @@
 """Course machinery: exercise checks, fast mode, skeleton of every chapter, learner notebooks in sync."""
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -145,11 +146,13 @@ def _toy_notebook():
         A.code("import masp_lite.course as course\ncourse.setup(seed=0)\nFAST = course.fast_mode()"),
         A.markdown("## Section 1: Adding (~5 min)"),
         A.code("print(1 + 1)"),
-        A.markdown("## Summary\nDone."),
-        A.markdown("## Exercises"),
+        A.markdown("### Exercise 1: add two numbers"),
         A.solution("def add(a, b):\n    ### BEGIN SOLUTION\n    return a + b\n    ### END SOLUTION", "add"),
         A.graded("added = course.check(add, lambda a, b: a + b, inputs=[(1, 2)], name='add')\n"
                  "course.assert_passed('add')", "check_add", points=1),
+        A.markdown("## Section 2: Adding more (~5 min)"),
+        A.code("print(added(1, 2) + 3)"),
+        A.markdown("## Summary\nDone."),
     ])
 
 
@@ -170,15 +173,50 @@ def test_toy_notebook_has_the_skeleton_and_a_broken_one_does_not():
         authoring.graded("assert True", "bad id")
 
 
+def _moved(nb, start, stop, before):
+    """``nb`` with its cells ``start:stop`` moved in front of cell ``before`` (indices of the original)."""
+    cells = list(nb.cells)
+    block, rest = cells[start:stop], cells[:start] + cells[stop:]
+    at = rest.index(cells[before]) if before < len(cells) else len(rest)
+    nb.cells = rest[:at] + block + rest[at:]
+    return nb
+
+
+def test_exercises_sit_right_after_their_section_not_after_the_summary():
+    A = authoring
+    # the old layout: the exercise waits under '## Exercises' after the summary
+    nb = _moved(_toy_notebook(), 6, 9, before=12)
+    nb.cells[-3].source = "## Exercises\n\n### Exercise 1: add two numbers"
+    found = authoring.problems(nb)
+    assert "cell 9: '## Exercises' after '## Summary': the summary ends the chapter " \
+           "(exercises go right after the section they practise)" in found
+    assert "cell 10: exercise cells belong inside the section they practise, right after its lesson " \
+           "(before '## Summary')" in found
+    # a graded check in another section than its solution; a solution without its heading
+    nb = _moved(_toy_notebook(), 8, 9, before=10)
+    assert any("without its graded check cell after it in the same section" in p for p in authoring.problems(nb))
+    nb = _toy_notebook()
+    nb.cells[6].source = "Now write it yourself."
+    assert any("without a '### Exercise K: ...' heading" in p for p in authoring.problems(nb))
+    nb = _toy_notebook()
+    nb.cells[6].source = "### Exercise 2: add two numbers"
+    assert any("expected '### Exercise 1', '### Exercise 2', ... in order, got [2]" in p
+               for p in authoring.problems(nb))
+    # an exercise before the first section (in the setup) is out of place too
+    nb = _moved(_toy_notebook(), 6, 9, before=4)
+    assert any("belong inside the section they practise" in p for p in authoring.problems(nb))
+    assert A.problems(_toy_notebook()) == []
+
+
 def test_learner_version_has_stubs_tags_and_no_solutions(tmp_path):
     src = tmp_path / "99_toy.ipynb"
     nbformat.write(_toy_notebook(), src)
     out = generate.generate(src, tmp_path / "learner")
     learner = nbformat.read(out, as_version=4)
-    sol = learner.cells[8]
+    sol = learner.cells[7]
     assert "return a + b" not in sol.source and "raise NotImplementedError()" in sol.source
     compile(sol.source, "stub", "exec")  # stubs stay valid Python
-    grade = learner.cells[9]
+    grade = learner.cells[8]
     assert "raises-exception" in grade.metadata["tags"]
     assert grade.metadata["editable"] is False and len(grade.metadata["nbgrader"]["checksum"]) == 32
     with pytest.raises(ValueError, match="instructor notebook"):
@@ -190,6 +228,17 @@ def test_learner_version_has_stubs_tags_and_no_solutions(tmp_path):
 def test_chapter_skeleton(path):
     nb = nbformat.read(path, as_version=4)
     assert authoring.problems(nb) == []
+
+
+@pytest.mark.parametrize("path", SOLUTIONS, ids=[p.stem for p in SOLUTIONS])
+def test_shell_commands_say_how_to_run_them(path):
+    """A command for a shell is spelt `.venv/bin/python -m ...` (a bare `python` outside the course's
+    environment has no torch), and a chapter that gives one says where to run it and how to activate."""
+    text = "\n".join(c.source for c in nbformat.read(path, as_version=4).cells)
+    bare = [m.group(0) for m in re.finditer(r"(?<![\w/.-])python3? -m [\w.]+", text)]
+    assert bare == [], f"spell these as .venv/bin/python -m ...: {bare}"
+    if ".venv/bin/python -m" in text:
+        assert "repository root" in text and "source .venv/bin/activate" in text
 
 
 @pytest.mark.parametrize("path", SOLUTIONS, ids=[p.stem for p in SOLUTIONS])

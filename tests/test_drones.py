@@ -87,6 +87,16 @@ def test_drone_drone_crash_is_one_event_and_both_leave():
     assert torch.equal(obs["agent_pos"][0, :2], frozen) and info["collisions"].item() == 0
 
 
+def test_a_given_start_in_contact_is_accepted_and_crashes_at_once():
+    w = make("drone-5", num_envs=1, seed=0)
+    pos = np.array([[0.0, 0, 1.5], [COLLISION_RADIUS, 0, 1.5], [2, 2, 1.5], [2, -2, 1.5], [-2, 2, 1.5]])
+    w.reset(options={"agent_pos": pos})                           # overlapping spheres: allowed
+    obs, info = w.step(hover(w))
+    assert info["collisions"].item() == 1 and obs["alive"][0].tolist() == [False, False, True, True, True]
+    with pytest.raises(ValueError, match="same point"):
+        w.reset(options={"agent_pos": np.zeros((5, 3)) + [0, 0, 1.5]})
+
+
 def test_floor_and_map_exit_are_crashes():
     w = make("drone-5", num_envs=1, seed=0)
     half = w.scenario.world_size / 2
@@ -169,7 +179,7 @@ def test_bad_scenarios_and_options():
     w = make("drone-5", num_envs=1, seed=0)
     with pytest.raises(ValueError, match="agent_pos"):
         w.reset(options={"agent_pos": np.zeros((4, 3))})
-    with pytest.raises(ValueError, match="overlap"):
+    with pytest.raises(ValueError, match="same point"):
         w.reset(options={"agent_pos": np.zeros((5, 3)) + [0, 0, 1.5]})
     with pytest.raises(ValueError, match="unknown reset option"):
         w.reset(options={"obstacles": 1})

@@ -1,9 +1,13 @@
 """3-D playback: recorded episodes, the standalone meshcat page in headless Chromium, the live server."""
 import os
+import re
 import shutil
 import subprocess
 import tempfile
+from dataclasses import replace
+from pathlib import Path
 
+import nbformat
 import numpy as np
 import pytest
 
@@ -11,6 +15,8 @@ from masp_lite.policies.drones import DroneHungarianGreedy
 from masp_lite.viz import meshcat3d
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+ROOT = Path(__file__).resolve().parents[1]
+SERVER_FRAME = re.compile(r"""<iframe[^>]*\ssrc\s*=\s*["']?\s*https?://(?:127\.0\.0\.1|localhost)""", re.I)
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +41,54 @@ def test_standalone_page_embeds_viewer_and_scene(episode, tmp_path):
     assert page.count("base64,") > 5 * 10  # drones, landmarks, trails, crash markers, animation
     html = meshcat3d.notebook_html(page)
     assert html.data.startswith("<div><iframe srcdoc=")
+    assert SERVER_FRAME.search(html.data) is None
+
+
+def _commands(episode):
+    import umsgpack
+    window = meshcat3d.RecordingWindow()
+    meshcat3d.build_scene(meshcat3d._meshcat().Visualizer(window=window), episode)
+    return [umsgpack.unpackb(c) for c in window.commands]
+
+
+def test_landmarks_are_marked_and_the_page_names_method_and_colours(episode):
+    sc = episode["scenario"]
+    objects = {c["path"]: c["object"]["geometries"][0] for c in _commands(episode) if c["type"] == "set_object"}
+    ball, marker = objects["/meshcat/landmarks/0/ball"], objects["/meshcat/landmarks/0/marker"]
+    assert ball["radius"] == sc.landmark_radius == 0.05
+    assert marker["radius"] == meshcat3d.marker_radius(sc) > 2.5 * ball["radius"]  # visible from the default camera
+    assert objects["/meshcat/landmarks/0/stem"]["height"] == pytest.approx(episode["landmark_pos"][0][2])
+    assert meshcat3d.marker_radius(replace(sc, world_size=16.0)) == 0.2              # grows with the map
+    page = meshcat3d.episode_html(episode)
+    key = page[page.index('<div id="masp-key">'):page.index("</div>", page.index('<div id="masp-key">'))]
+    assert "<b>DroneHungarianGreedy</b> on drone-5" in key and "landmarks covered at the end" in key
+    for words in ("landmark", "reached", "crash", "rotor spinning −1", "rotor spinning +1"):
+        assert words in key
+    assert "<title>masp-lite: DroneHungarianGreedy on drone-5</title>" in page
+    assert meshcat3d.record_episode("h-greedy", "drone-5", horizon=2)["method"] == "h-greedy"
+
+
+def test_chapter_08_saved_outputs_embed_the_view_not_a_server_frame(monkeypatch):
+    """Run chapter 08's setup and 3-D section as the learner would and save it: the saved outputs
+    hold the standalone view (an ``iframe srcdoc``), not a frame on the local server, which is
+    blank once the server is gone (every time the saved notebook is opened again)."""
+    nbclient = pytest.importorskip("nbclient")
+    chapter = nbformat.read(ROOT / "solutions" / "08_quadrotors.ipynb", as_version=4)
+    heads = [i for i, c in enumerate(chapter.cells) if c.cell_type == "markdown"]
+    at = lambda text: next(i for i in heads if text in chapter.cells[i].source)  # noqa: E731
+    setup = [c for c in chapter.cells[at("## Setup"):at("## Section 1")] if c.cell_type == "code"]
+    section = [c for c in chapter.cells[at("## Section 5"):at("## Summary")] if c.cell_type == "code"]
+    assert any("LiveViewer" in c.source for c in section), "expected the live viewer in the 3-D section"
+    part = nbformat.v4.new_notebook(cells=setup + section, metadata=chapter.metadata)
+    monkeypatch.setenv("MASP_LITE_FAST", "1")
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    nbclient.NotebookClient(part, timeout=300, resources={"metadata": {"path": str(ROOT)}}).execute()
+    saved = nbformat.reads(nbformat.writes(part), as_version=4)          # what a saved notebook holds
+    html = [value for cell in saved.cells for out in cell.get("outputs", [])
+            for key, value in out.get("data", {}).items() if key == "text/html"]
+    assert any(h.startswith("<div><iframe srcdoc=") for h in html)         # the embedded standalone view
+    assert not [h for h in html if SERVER_FRAME.search(h)], "a saved output frames the local meshcat server"
+    assert SERVER_FRAME.search('<iframe src="http://127.0.0.1:7000/static/"></iframe>')  # the pattern does catch one
 
 
 def screenshot(page: str, png: str) -> np.ndarray:

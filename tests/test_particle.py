@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from masp_lite.envs import MPE2_WORLD, PHYSICS, SCENARIOS, ParticleWorld, make, scenario_names
+from masp_lite.envs import MPE2_WORLD, PHYSICS, SCENARIOS, ParticleWorld, make, parallel_env, scenario_names
 from masp_lite.envs.scenarios import get_scenario
 
 DT, DAMP, SENS = PHYSICS["dt"], PHYSICS["damping"], PHYSICS["sensitivity"]
@@ -29,7 +29,7 @@ def act(w, ids):
 
 
 def place(w, agents, obstacles=None):
-    """Put bodies where reset would refuse them (overlapping), then refresh the contact geometry."""
+    """Put bodies anywhere mid-episode (overlapping, say), then refresh the contact geometry."""
     w.agent_pos = torch.tensor(agents, dtype=w.dtype).reshape(1, -1, 2)
     if obstacles is not None:
         w.obstacle_pos = torch.tensor(obstacles, dtype=w.dtype).reshape(1, -1, 2)
@@ -219,6 +219,36 @@ def test_spawns_do_not_overlap_and_stay_inside(name):
     w = make(name, num_envs=16, seed=1)
     assert_valid_spawn(w)
     w.reset(env_ids=[0, 3])
+    assert_valid_spawn(w)
+
+
+def test_a_given_overlapping_start_is_accepted_and_contact_pushes_the_agents_apart():
+    """As in MPE: reset(options=...) may start agents in contact, with each other or with an obstacle."""
+    for integration in ("mpe2", "velocity_first"):
+        w = ParticleWorld("mpe-5", num_agents=3, num_obstacles=1, dtype=torch.float64, seed=0, integration=integration)
+        w.reset(options={"agent_pos": [[0.0, 0.0], [0.1, 0.0], [-0.6, 0.45]], "obstacle_pos": [[-0.6, 0.6]],
+                         "landmark_pos": [[0.8, 0.8], [-0.8, -0.8], [0.8, -0.8]]})
+        assert w.collisions.tolist() == [2] and w.agent_collisions.tolist() == [[1, 1, 1]]  # counted at t = 0
+        gaps = [(0.1, 0.15)]
+        for _ in range(3):
+            act(w, [0, 0, 0])
+            gaps.append((float((w.agent_pos[0, 1] - w.agent_pos[0, 0]).norm()),
+                         float((w.agent_pos[0, 2] - w.obstacle_pos[0, 0]).norm())))
+        assert all(b[0] > a[0] and b[1] > a[1] for a, b in zip(gaps[1:], gaps[2:])), gaps  # apart, steadily
+        assert gaps[-1][0] > 2 * w.scenario.agent_radius and gaps[-1][1] > 0.2   # out of contact within 3 steps
+        assert w.obstacle_pos[0, 0].tolist() == [-0.6, 0.6] and torch.isfinite(w.agent_pos).all()
+    env = parallel_env("mpe-5")                                                   # the PettingZoo face too
+    env.reset(seed=0, options={"agent_pos": [[0, 0], [0.1, 0], [0.6, 0], [0.9, 0], [-0.6, 0]]})
+    assert env.world.collisions.tolist() == [1]
+
+
+def test_random_spawns_keep_clear_of_given_bodies():
+    """Only given bodies may overlap: what reset draws stays apart from everything, given or drawn."""
+    agents = torch.tensor([[-0.7, -0.7], [-0.7, 0.7], [0.7, -0.7], [0.7, 0.7], [0.0, 0.0]])
+    w = make("mpe-5", num_envs=64, seed=3)
+    w.reset(options={"agent_pos": agents})                      # obstacles and landmarks drawn around them
+    assert_valid_spawn(w)
+    w.reset(options={"landmark_pos": agents})                   # obstacles drawn clear of given landmarks
     assert_valid_spawn(w)
 
 

@@ -1,5 +1,12 @@
-"""Training CLI: resume after an interruption reproduces an uninterrupted run; bad input; weights files."""
+"""Training CLI: resume after an interruption reproduces an uninterrupted run; Ctrl-C; bad input; weights files."""
 import json
+import re
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import pytest
 import torch
@@ -49,6 +56,47 @@ def test_interrupted_and_resumed_run_ends_with_the_same_parameters(tmp_path):
     assert [r.split(",")[0] for r in rows[1:]] == ["1", "2", "3", "4"]
     m = json.loads((tmp_path / "cut" / "manifest.json").read_text())
     assert m["seed"] == 3 and m["scenario"] == "mpe-5" and m["wall_clock_s"] > 0 and m["config"]["updates"] == 4
+
+
+def test_ctrl_c_during_train_keeps_the_checkpoint_and_prints_the_resume_command(tmp_path, capsys):
+    """A real SIGINT to a tiny ``train`` in a subprocess, once its first checkpoint is written."""
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "run"
+    sets = dict(num_envs=2, updates=1000, checkpoint_every=1, eval_every=0, eval_episodes=2, ppo_epochs=1,
+                num_minibatches=1, width=8, horizon=6)
+    cmd = [sys.executable, "-m", "masp_lite", "train", "--scenario", "mpe-5", "--out", str(out), "--threads", "1",
+           "--quiet", *(x for k, v in sets.items() for x in ("--set", f"{k}={v}"))]
+    # a shell that starts jobs in the background ignores SIGINT; the command itself must get it
+    proc = subprocess.Popen(cmd, cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "state.pt").exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert (out / "state.pt").exists(), "no checkpoint appeared"
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err
+    done = int(re.search(r"the last checkpoint, iteration (\d+) of 1000, is whole in", err).group(1))
+    assert done >= 1 and torch.load(out / "state.pt", weights_only=True)["iterations"] == done
+    resume = shlex.split(err.split("Resume the run with:")[1].strip().splitlines()[0])
+    assert resume[1:4] == ["-m", "masp_lite", "train"] and resume[-1] == "--resume"
+    assert main([*resume[3:], "--set", f"updates={done + 1}"]) == 0  # the printed command, one iteration more
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["iterations"] == done + 1 and m["overrides"] == {"horizon": 6}
+    rows = (out / "progress.csv").read_text().splitlines()[1:]
+    assert [int(r.split(",")[0]) for r in rows] == list(range(1, done + 2))
+    assert "final evaluation (deterministic, 2 episodes): SR" in capsys.readouterr().out
+
+
+def test_progress_bar_tells_training_rollouts_from_the_evaluation(tmp_path, capsys):
+    train("mpe-5", MAPPOConfig(**{**TINY, "updates": 2, "eval_every": 1}), tmp_path / "run", progress=True)
+    bar = capsys.readouterr().err
+    assert "training rollouts (sampled): SR" in bar and "evaluation (deterministic) at 2: SR" in bar
+    assert "sr=" not in bar
 
 
 def test_resume_errors_leave_files_alone(tmp_path):

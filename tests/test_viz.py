@@ -1,4 +1,6 @@
 """2-D playback: recorded frames, drawing, and the play command writing files."""
+import re
+
 import matplotlib
 import numpy as np
 import pytest
@@ -181,3 +183,102 @@ def test_training_history_of_the_shipped_weights(tmp_path):
     cols = read_progress(last["progress"])
     assert len(cols["iteration"]) == last["training"]["iterations"]
     assert abs(last_evaluation(cols)["sr"] - last["training"]["final_eval"]["sr"]) < 1e-4
+
+
+# ------------------------------------------------- playback: readable, keyed, offline
+NETWORK = re.compile(r"""(?:src|href)\s*=\s*["']?\s*(?:https?:)?//|url\(\s*["']?\s*(?:https?:)?//|@import""", re.I)
+
+
+def test_animation_is_readable_at_50_agents_with_key_trails_goals_and_method():
+    import matplotlib.pyplot as plt
+
+    from masp_lite.viz.anim2d import MIN_AGENT_PT, legend
+    w = make("mpe-50", num_envs=1, seed=0, horizon=12)
+    frames = record(w, make_policy("h-greedy", w), seed=0)
+    anim = animate(frames, title="h-greedy on mpe-50", goals=True, trail=4)
+    anim._func(10)
+    fig, scene = anim._fig, anim.scene
+    ax = scene.ax
+    assert ax.get_title().startswith("h-greedy on mpe-50   t = 10/12")
+    fig.canvas.draw()
+    drawn_pt = 2 * scene.agents._widths[0] * ax.get_window_extent().width / fig.dpi * 72 / 20.0  # _widths: radii
+    assert drawn_pt >= MIN_AGENT_PT and scene.magnify == 2.0       # magnified on the 20 m map ...
+    np.testing.assert_allclose(scene.agents._widths, 0.1 * 2.0)
+    np.testing.assert_allclose(scene.agents.get_offsets(), frames[10]["agent_pos"])  # ... at exact positions
+    assert ax.get_xlabel() == "bodies drawn 2× their size"         # ... and the figure says so
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert {"agent", "landmark", "covered landmark", "obstacle", "agent in contact", "agent → its goal",
+            "recent path"} <= set(labels)
+    assert len(scene.trails.get_segments()) == 4 * 50              # 4 earlier frames x 50 agents
+    goal_of = frames[10]["assignment"]
+    assert len(scene.lines.get_segments()) == int((goal_of >= 0).sum()) > 0
+    np.testing.assert_allclose(scene.lines.get_segments()[0][1], frames[10]["landmark_pos"][goal_of[goal_of >= 0][0]])
+    plain = animate(frames)                                        # no goal lines unless asked for, no method
+    plain._func(10)
+    assert len(plain.scene.lines.get_segments()) == 0 and plain.scene.ax.get_title().startswith("t = 10/12")
+    w5 = make("mpe-5", num_envs=1, seed=0, horizon=2)
+    assert animate(record(w5, make_policy("h-greedy", w5), seed=0)).scene.magnify == 1.0  # small maps: to scale
+    fig2, ax2 = plt.subplots()                                          # the key on one axes, without contacts
+    assert [t.get_text() for t in legend(ax2, contacts=False).get_texts()] == [
+        "agent", "landmark", "covered landmark", "obstacle"]
+    plt.close(fig2)
+    with pytest.raises(ValueError, match="trail"):
+        animate(frames, trail=-1)
+
+
+def test_current_goals_reads_what_each_policy_exposes():
+    from masp_lite.viz.anim2d import current_goals
+    w = make("mpe-5", num_envs=2, seed=0, horizon=4)
+    obs = w.reset(seed=0)
+    for method in ("h-greedy", "h-orca", "masp"):
+        policy = make_policy(method, w)
+        policy.reset(obs)
+        policy.act(obs)
+        goals = current_goals(policy)
+        assert goals is not None and goals.shape == (2, 5) and not goals.is_floating_point(), method
+    random = make_policy("random", w)
+    random.reset(obs)
+    random.act(obs)
+    assert current_goals(random) is None
+    frames = record(w, make_policy("masp", w), seed=0)                   # MASP's Goal Matcher picks, per frame
+    assert frames[1]["assignment"].shape == (5,) and frames[0]["assignment"] is None
+
+
+def test_player_embeds_a_video_that_loads_nothing_from_the_network():
+    from masp_lite.viz.anim2d import player
+    w = make("mpe-5", num_envs=1, seed=0, horizon=3)
+    html = player(animate(record(w, make_policy("h-greedy", w), seed=0), title="h-greedy")).data
+    assert "<video" in html and 'src="data:video/mp4;base64,' in html
+    assert NETWORK.search(html) is None
+    assert NETWORK.search('<link href="https://cdn.example/x.css">')  # the pattern does catch a CDN link
+    assert NETWORK.search(animate(record(w, make_policy("random", w), seed=0)).to_jshtml())  # matplotlib's JS player
+
+
+def test_play_goals_flag(tmp_path, capsys):
+    out = tmp_path / "goals.gif"
+    assert main(["play", "--method", "h-greedy", "--scenario", "mpe-5", "--out", str(out), "--set", "horizon=3",
+                 "--goals"]) == 0 and out.stat().st_size > 0
+    capsys.readouterr()
+    assert main(["play", "--method", "h-greedy", "--scenario", "drone-5", "--out", str(tmp_path / "x.html"),
+                 "--goals"]) == 2
+    assert "2-D only" in capsys.readouterr().err
+
+
+def test_progress_step_ticks_do_not_overlap():
+    import matplotlib.pyplot as plt
+
+    from masp_lite.viz.progress import plot_progress
+    n = 150                                                               # chapter 06's short run at full size
+    cols = {k: np.linspace(0, 1, n) for k in ("train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward")}
+    cols.update(env_steps=1152.0 * np.arange(1, n + 1), eval_sr=np.full(n, np.nan), eval_steps=np.full(n, np.nan),
+                eval_cr=np.full(n, np.nan))
+    fig = plot_progress(cols, "short run")
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        boxes = [t.get_window_extent(renderer) for t in ax.get_xticklabels() if t.get_visible() and t.get_text()]
+        assert len(boxes) >= 3
+        for a, b in zip(boxes, boxes[1:]):
+            assert a.x1 < b.x0, f"x tick labels overlap: {[t.get_text() for t in ax.get_xticklabels()]}"
+    assert "50k" in [t.get_text() for t in fig.axes[0].get_xticklabels()]
+    plt.close(fig)

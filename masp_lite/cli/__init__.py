@@ -1,9 +1,14 @@
 """Command line: ``python -m masp_lite COMMAND ...`` — one module per command, argparse only.
 
 Each command module (:mod:`.evaluate`, :mod:`.train`, :mod:`.play`, :mod:`.reproduce`, :mod:`.bench`) provides
-``add_arguments(parser)`` and ``run(args) -> int`` over the library's public functions;
-this file only dispatches, so commands stay independent. A ``ValueError`` (bad input)
-becomes one ``error: ...`` line and exit status 2.
+``add_arguments(parser)`` and ``run(args) -> int`` over the library's public functions,
+and may list ``EXAMPLES`` (command lines shown at the end of its ``--help``); this file only
+dispatches, so commands stay independent. A ``ValueError`` (bad input) becomes one
+``error: ...`` line and exit status 2.
+
+Usage lines name the program (``python -m masp_lite evaluate``); examples are written as the
+README writes its commands, with the course's environment spelt out (:data:`PYTHON`, see
+:data:`ENVIRONMENT`): a bare ``python`` outside that environment has no torch.
 """
 from __future__ import annotations
 
@@ -11,7 +16,13 @@ import argparse
 import importlib
 import sys
 
-__all__ = ["COMMANDS", "main"]
+__all__ = ["COMMANDS", "PYTHON", "ENVIRONMENT", "main", "epilog"]
+
+#: The course's interpreter, as the README's commands spell it (run from the repository root).
+PYTHON = ".venv/bin/python"
+#: How to run the commands: the same sentence as the README's.
+ENVIRONMENT = (f"Run the commands from the repository root with the course's environment: write `{PYTHON}`, "
+               "or run `source .venv/bin/activate` once and then write plain `python`.")
 
 #: command -> (module, one-line help)
 COMMANDS = {
@@ -26,8 +37,15 @@ COMMANDS = {
 def _usage() -> str:
     lines = ["usage: python -m masp_lite COMMAND [options]", "", "commands:"]
     lines += [f"  {name:<10} {help_}" for name, (_, help_) in COMMANDS.items()]
-    lines += ["", "python -m masp_lite COMMAND --help shows a command's options."]
+    lines += ["", "python -m masp_lite COMMAND --help shows a command's options.", "", ENVIRONMENT,
+              f"For example: {PYTHON} -m masp_lite evaluate --help"]
     return "\n".join(lines)
+
+
+def epilog(examples=()) -> str:
+    """The end of a command's ``--help``: its examples (``"evaluate --method ..."``) and :data:`ENVIRONMENT`."""
+    lines = ["examples:", *(f"  {PYTHON} -m masp_lite {e}" for e in examples), ""] if examples else []
+    return "\n".join([*lines, ENVIRONMENT])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -47,7 +65,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"command {name!r} is not available in this version ({module_name} is missing)", file=sys.stderr)
             return 2
         raise
-    parser = argparse.ArgumentParser(prog=f"python -m masp_lite {name}", description=help_)
+    parser = argparse.ArgumentParser(prog=f"python -m masp_lite {name}", description=help_,
+                                     epilog=epilog(getattr(module, "EXAMPLES", ())),
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     module.add_arguments(parser)
     args = parser.parse_args(rest)
     try:

@@ -3,11 +3,14 @@
 Runs :func:`masp_lite.evaluation.evaluate` and prints the record as the paper's table.
 ``--set`` takes scenario overrides (``num_agents=100``, ``team_after=none``) and the
 method's options (``power=2``), each value parsed by the type of what it sets
-(:func:`masp_lite.config.parse_sets`, the parser every command uses).
+(:func:`masp_lite.config.parse_sets`, the parser every command uses). The table shows them
+beside the method and scenario. ``--json PATH`` is checked to be writable before the run, so
+a bad path fails at once rather than after the whole evaluation.
 """
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 from ..config import field_types, parse_sets
@@ -15,7 +18,14 @@ from ..envs import OVERRIDES, Scenario
 from ..evaluation import MAX_ENVS, evaluate, format_table
 from ..policies import get_factory, method_options, option_types
 
-__all__ = ["add_arguments", "run", "split_sets", "override_types"]
+__all__ = ["add_arguments", "run", "split_sets", "override_types", "check_writable", "EXAMPLES"]
+
+EXAMPLES = [
+    "evaluate --method h-greedy --scenario mpe-20 --episodes 100 --seeds 0 1 2 --json out.json",
+    "evaluate --method h-greedy --scenario mpe-20to10 --set team_after=none   # overrides and options",
+    "evaluate --method masp --scenario mpe-50 --set num_agents=100",
+    "evaluate --method masp --scenario mpe-20 --checkpoint runs/mpe-20/weights.pt",
+]
 
 
 def override_types() -> dict[str, object]:
@@ -46,6 +56,29 @@ class _Any(dict):
         return self.get(key)
 
 
+def check_writable(path) -> Path:
+    """``path`` as a ``Path`` when the record can be written there later; else one ValueError.
+
+    Nothing is created now (:func:`run` makes missing folders when it writes): ``path`` must
+    be a writable file, or its nearest existing folder must be a writable folder; a regular
+    file on the way, or ``path`` itself a folder, fails."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"--json {str(path)!r} is a folder; expected a file path such as {str(path / 'out.json')!r}")
+    if path.exists():
+        if not os.access(path, os.W_OK):
+            raise ValueError(f"--json {str(path)!r}: the file is not writable; expected a writable path")
+        return path
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise ValueError(f"--json {str(path)!r}: {str(folder)!r} is a file, not a folder; expected a writable path")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ValueError(f"--json {str(path)!r}: the folder {str(folder)!r} is not writable; expected a writable path")
+    return path
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("--method", required=True, help="method name (see masp_lite.policies)")
     parser.add_argument("--scenario", required=True, help="scenario preset, e.g. mpe-20")
@@ -63,12 +96,15 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     overrides, options = split_sets(args.set, args.method)
+    out = check_writable(args.json) if args.json else None
     record = evaluate(args.method, args.scenario, episodes=args.episodes, seeds=args.seeds,
                       overrides=overrides, method_options=options, checkpoint=args.checkpoint,
                       device=args.device, num_envs=args.num_envs, progress=True)
     print(format_table([record], fmt=args.format))
-    if args.json:
-        path = Path(args.json)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(record, indent=2) + "\n")
+    if out is not None:
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            out.write_text(json.dumps(record, indent=2) + "\n")
+        except OSError as e:  # it changed during the run
+            raise ValueError(f"--json {str(out)!r}: could not write the record ({e})") from None
     return 0

@@ -5,17 +5,28 @@ Trains MASP with :func:`masp_lite.training.train` (run folder, exact resume, man
 ``--set updates=300 --set lr=2e-4``) or scenario override (``--set num_obstacles=40``),
 parsed by :func:`masp_lite.config.parse_sets` as in every command. ``--init PATH`` starts
 from a weights file (fine-tuning).
+
+The progress bar shows the training rollouts (sampled actions) and the last periodic
+evaluation (deterministic policies); the closing line is the final evaluation. Ctrl-C stops
+the run without a traceback: the last checkpoint (``state.pt``, written atomically) is read
+back to check it is whole, and the exact command that resumes it is printed (exit status 130).
 """
 from __future__ import annotations
 
+import os
 import shlex
 import sys
 
 import torch
 
-from ..training import parse_config, train
+from ..training import checkpoint_iterations, parse_config, train
 
-__all__ = ["add_arguments", "run"]
+__all__ = ["add_arguments", "run", "resume_command", "EXAMPLES"]
+
+EXAMPLES = [
+    "train --method masp --scenario mpe-20 --out runs/mpe-20 --seed 0 --set lr=2e-4",
+    "train --method masp --scenario mpe-20 --out runs/mpe-20 --resume   # continue it after Ctrl-C",
+]
 
 
 def add_arguments(parser) -> None:
@@ -31,6 +42,34 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def _python() -> str:
+    """This interpreter as a command: relative to the current folder when inside it (``.venv/bin/python``)."""
+    rel = os.path.relpath(sys.executable)
+    return rel if not rel.startswith("..") else sys.executable
+
+
+def resume_command(args, out: str) -> str:
+    """The command line that continues this run: the same scenario, seed and settings, ``--resume``."""
+    parts = [_python(), "-m", "masp_lite", "train", "--method", args.method, "--scenario", args.scenario,
+             "--out", out, "--seed", str(args.seed)]
+    parts += [x for s in args.sets for x in ("--set", s)]
+    parts += ["--threads", str(args.threads)] if args.threads != 2 else []
+    parts += ["--quiet"] if args.quiet else []
+    return shlex.join([*parts, "--resume"])
+
+
+def _interrupted(args, out: str, cfg) -> str:
+    try:
+        done = checkpoint_iterations(out)
+    except ValueError as e:
+        return f"interrupted; the training state in {out} does not load ({e})"
+    if done is None:
+        return (f"interrupted before the first checkpoint (one every {cfg.run.checkpoint_every} iterations): "
+                f"nothing to resume in {out}; run the same command again to start over")
+    return (f"interrupted; the last checkpoint, iteration {done} of {cfg.run.updates}, is whole in "
+            f"{os.path.join(out, 'state.pt')}. Resume the run with:\n  {resume_command(args, out)}")
+
+
 def run(args) -> int:
     if args.method != "masp":
         raise ValueError(f"train: unknown method {args.method!r}; expected 'masp'")
@@ -41,9 +80,14 @@ def run(args) -> int:
     out = args.out or f"runs/masp-{args.scenario}-seed{args.seed}"
     command = "python -m masp_lite train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "train" else None
-    m = train(args.scenario, cfg, out, seed=args.seed, resume=args.resume, init=args.init, overrides=overrides,
-              progress=not args.quiet, command=command)
+    try:
+        m = train(args.scenario, cfg, out, seed=args.seed, resume=args.resume, init=args.init,
+                  overrides=overrides, progress=not args.quiet, command=command)
+    except KeyboardInterrupt:  # Ctrl-C: no traceback; say where the run stands and how to go on
+        print(f"\n{_interrupted(args, out, cfg)}", file=sys.stderr)
+        return 130
     ev = m["final_eval"]
-    print(f"masp on {m['scenario']}: SR {ev['sr']:.3f}  Steps {ev['steps']:.2f}  CR {ev['cr']:.3f}  "
+    print(f"masp on {m['scenario']}, final evaluation (deterministic, {ev['episodes']} episodes): "
+          f"SR {ev['sr']:.3f}  Steps {ev['steps']:.2f}  CR {ev['cr']:.3f}  "
           f"({m['env_steps']} env steps, {m['wall_clock_s']:.0f} s) -> {out}")
     return 0

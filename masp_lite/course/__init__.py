@@ -15,14 +15,19 @@ it is generated. ``notebooks/README.md`` is the course map.
         course.setup(seed=0)       # seeds random/NumPy/torch, 2 torch threads
         FAST = course.fast_mode()  # small budgets under the tests; FAST = False for full size
     ## Section 1: Title (~10 min)            (as many sections as needed, with time estimates)
-    ## Summary
-    ## Exercises                             (solution cells + graded check cells)
+    ### Exercise 1: ...                      (right after the lesson it practises, inside its
+                                              section: solution cell + graded check cell)
+    ## Section 2: ...
+    ## Summary                               (the end: nothing follows it)
 
 Show library code with ``course.show(fn)`` (``inspect.getsource``); never paste it.
 Scale every budget with ``FAST`` (``episodes = 3 if FAST else 100``): in fast mode a
 chapter must run in about a minute on 2 cores (3 minutes at most).
 
-**An exercise** is two cells. The solution cell (nbgrader ``solution: true``)::
+**An exercise** sits at the end of the section that teaches its concept, as in
+Neuromatch's tutorials, never in a block after the summary: a ``### Exercise K: …``
+markdown cell (numbered through the chapter), then two cells. The solution cell
+(nbgrader ``solution: true``)::
 
     def my_contact_force(delta, dist, dist_min):
         \"\"\"...what to compute, which paper equation...\"\"\"

@@ -15,8 +15,11 @@ graded check   ``{grade: true, solution: false, locked: true, points, grade_id, 
 :func:`problems` lists what a chapter is missing from the course skeleton (Neuromatch
 style): a ``# Chapter NN: …`` title; ``## Objectives`` (naming the prerequisites);
 ``## Setup`` whose first code cell calls ``course.setup(`` and ``course.fast_mode()``;
-one or more ``## Section N: … (~M min)``; ``## Summary``; ``## Exercises`` holding the
-solution cells (``### BEGIN SOLUTION`` … ``### END SOLUTION``) and graded check cells.
+one or more ``## Section N: … (~M min)``; ``## Summary`` as the last level-2 heading.
+Each exercise sits right after the section that teaches it, inside that section: a
+``### Exercise K: …`` heading (K = 1, 2, … through the chapter), its solution cell
+(``### BEGIN SOLUTION`` … ``### END SOLUTION``) and, before the next section, its
+graded check cell — so no exercise waits at the end of the chapter, far from its concept.
 Notebooks are shipped without outputs and without machine-specific paths.
 """
 from __future__ import annotations
@@ -28,10 +31,12 @@ from nbgrader.nbgraderformat import MetadataValidator, ValidationError
 
 __all__ = ["markdown", "code", "solution", "graded", "notebook", "problems", "HEADINGS"]
 
-#: The level-2 headings every chapter has, in this order (sections go between Setup and Summary).
-HEADINGS = ("Objectives", "Setup", "Section", "Summary", "Exercises")
+#: The level-2 headings every chapter has, in this order (sections go between Setup and Summary, exercises
+#: inside the sections they practise; nothing follows the Summary).
+HEADINGS = ("Objectives", "Setup", "Section", "Summary")
 
 _SECTION = re.compile(r"^## Section \d+: .+\(~?\s*\d+\s*min(utes)?\)\s*$")
+_EXERCISE = re.compile(r"^### Exercise (\d+): \S", re.MULTILINE)
 _PATHS = re.compile(r"""["'](?:/|[A-Za-z]:\\+)[\w.-]+[/\\]""")  # a quoted absolute path
 
 
@@ -88,6 +93,41 @@ def _headings(cell):
     return [line.strip() for line in cell.source.splitlines() if line.startswith("## ")]
 
 
+def _exercise_problems(cells, sols, grades) -> list[str]:
+    """Where the exercises sit: each inside a section, headed, followed by its check; nothing after the Summary."""
+    out, section, summary = [], {}, False  # section: cell index -> the cell of the '## Section' it lies in (or None)
+    current = None
+    for i, cell in enumerate(cells):
+        for h in _headings(cell) if cell.cell_type == "markdown" else []:
+            if summary:
+                out.append(f"cell {i}: {h!r} after '## Summary': the summary ends the chapter "
+                           "(exercises go right after the section they practise)")
+            summary = summary or h.startswith("## Summary")
+            current = i if h.startswith("## Section") else None
+        section[i] = current
+    numbers, headed = [], False  # headed: an '### Exercise K:' heading waits for its solution cell
+    for i, cell in enumerate(cells):
+        if cell.cell_type == "markdown":
+            headed = headed and not _headings(cell)
+            found = [int(k) for k in _EXERCISE.findall(cell.source)]
+            numbers += found
+            headed = headed or bool(found)
+        if (i in sols or i in grades) and section[i] is None:
+            out.append(f"cell {i}: exercise cells belong inside the section they practise, right after its "
+                       "lesson (before '## Summary')")
+        if i in sols:
+            if not headed:
+                out.append(f"cell {i}: solution cell without a '### Exercise K: ...' heading above it in its section")
+            headed = False
+            check = next((j for j in grades if j > i), None)
+            later = next((j for j in sols if j > i), len(cells))
+            if check is None or check > later or section[check] != section[i]:
+                out.append(f"cell {i}: solution cell without its graded check cell after it in the same section")
+    if numbers != list(range(1, len(numbers) + 1)):
+        out.append(f"exercise headings: expected '### Exercise 1', '### Exercise 2', ... in order, got {numbers}")
+    return out
+
+
 def problems(nb: nbformat.NotebookNode) -> list[str]:
     """What ``nb`` (an instructor notebook) lacks from the course skeleton; empty when complete."""
     out: list[str] = []
@@ -135,9 +175,7 @@ def problems(nb: nbformat.NotebookNode) -> list[str]:
     for i in grades:
         if "check(" not in cells[i].source and "assert" not in cells[i].source:
             out.append(f"cell {i}: graded cell should call course.check(...) / course.assert_passed(...)")
-    for i in sols + grades:
-        if i < first["Exercises"]:
-            out.append(f"cell {i}: exercise cells belong under '## Exercises'")
+    out += _exercise_problems(cells, sols, grades)
     for i, cell in enumerate(cells):
         if cell.cell_type == "code" and (cell.get("outputs") or cell.get("execution_count")):
             out.append(f"cell {i}: expected no outputs (ship notebooks cleared)")

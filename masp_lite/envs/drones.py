@@ -26,6 +26,8 @@ Choices (the paper leaves them open):
   (z = 0) to ``CEILING`` = 3 m. Drones spawn hovering at ``FLIGHT_HEIGHT`` = 1.5 m, at
   least ``2·COLLISION_RADIUS + 0.05`` m apart; landmarks anywhere with z ∈ [1, 2] m, as far
   apart from one another, so that two drones can hover on two landmarks without touching.
+  Only drawn positions are kept apart: a given ``agent_pos`` may put drones in contact
+  (they crash in the first step), as the particle world lets given agents overlap.
   Rotors start at the hover throttle.
 * **Reached (3-D).** A landmark is covered when an alive drone's centre is within
   ``reach_distance = ARM_LENGTH + landmark_radius`` = 0.22 m of its centre: the ball touches
@@ -149,10 +151,11 @@ class DroneWorld(BatchedWorld):
         else:
             pos = self._sample(n, r, (FLIGHT_HEIGHT, FLIGHT_HEIGHT))
         lms = given["landmark_pos"] if "landmark_pos" in given else self._sample(n, r, LANDMARK_HEIGHTS)
-        d = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1) + np.eye(N) * 1e9
-        if (d < 2 * COLLISION_RADIUS).any():
-            raise ValueError("reset options: drones overlap; expected centres at least "
-                             f"{2 * COLLISION_RADIUS:g} m apart")
+        if "agent_pos" in given:  # drawn positions are apart already; given ones may touch (a crash)
+            d = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1) + np.eye(N) * 1e9
+            if (d == 0).any():
+                raise ValueError("reset options: two drones at the same point; expected distinct positions "
+                                 "(drones may overlap: they collide and crash in the first step)")
         quat = given.get("agent_quat", np.broadcast_to([1.0, 0, 0, 0], (n, N, 4)))
         norm = np.linalg.norm(quat, axis=-1, keepdims=True)
         if (norm < 1e-9).any():

@@ -99,7 +99,9 @@ class ParticleWorld(BatchedWorld):
         ``options`` may give the start state: ``agent_pos`` (N, 2), ``landmark_pos`` (N, 2),
         ``obstacle_pos`` (K, 2), ``agent_vel`` (N, 2) — or with a leading batch dimension
         matching the episodes being reset — and ``keep`` (N,) bool, the agents that stay
-        after a team-size change. Anything not given is drawn at random.
+        after a team-size change. Anything not given is drawn at random, apart from every
+        other body; given agents may overlap one another or an obstacle, as in MPE, and
+        contact then pushes them apart (:meth:`_check_start` says what is refused).
         """
         if seed is not None:
             self._rng.manual_seed(int(seed))
@@ -110,7 +112,7 @@ class ParticleWorld(BatchedWorld):
         given = {k: torch.from_numpy(v) for k, v in self._start_state(options, n).items()}
         obst, agents, lms = self._spawn(n, given)
         keep = torch.from_numpy(self._team_mask(n, options.get("keep")))
-        self._check_no_overlap(agents, obst, lms)
+        self._check_start(agents, obst, lms)
 
         def put(name, value, shape):
             full = getattr(self, name, None)
@@ -138,17 +140,20 @@ class ParticleWorld(BatchedWorld):
         return torch.rand(n, self.num_agents, generator=self._rng).argsort(dim=1).numpy()
 
     def _spawn(self, n, given):
-        """Rejection-sample non-overlapping bodies, vectorized over episodes.
+        """The bodies of ``given``, the rest rejection-sampled without overlap, vectorized over episodes.
 
-        Obstacles first, then agents (clear of obstacles and each other), then landmarks
-        (clear of obstacles and each other; a landmark may lie under an agent). Obstacles
-        and agents are uniform over the map; landmarks too, or over the central 0.8× square
-        (``Scenario.landmark_spawn``). The paper does not say where its obstacles go.
+        Obstacles first (clear of given agents and landmarks), then agents (clear of
+        obstacles and each other), then landmarks (clear of obstacles and each other; a
+        landmark may lie under an agent). Obstacles and agents are uniform over the map;
+        landmarks too, or over the central 0.8× square (``Scenario.landmark_spawn``). The
+        paper does not say where its obstacles go. Only what is drawn here is kept apart:
+        given agents may overlap (see :meth:`_check_start`).
         """
         sc = self.scenario
         ra, rl, ro = sc.agent_radius, sc.landmark_radius, sc.obstacle_radius
+        placed = [(given[k], r) for k, r in (("agent_pos", ra), ("landmark_pos", rl)) if k in given]
         obst = given.get("obstacle_pos") if "obstacle_pos" in given else \
-            self._sample(n, self.num_obstacles, ro, [])
+            self._sample(n, self.num_obstacles, ro, placed)
         agents = given.get("agent_pos") if "agent_pos" in given else \
             self._sample(n, self.num_agents, ra, [(obst, ro)])
         lms = given.get("landmark_pos") if "landmark_pos" in given else \
@@ -175,25 +180,32 @@ class ParticleWorld(BatchedWorld):
 
         return self._place(out, draw, clear, f"{count} bodies of radius {radius} without overlap")
 
-    def _check_no_overlap(self, agents, obst, lms):
+    def _check_start(self, agents, obst, lms):
+        """Refuse a start state that MPE's physics cannot run or that no episode can solve.
+
+        Given agents may overlap each other or an obstacle, as MPE allows: the contact force
+        pushes them apart in the first steps (and counts as a collision). What is refused:
+        two agents, or an agent and an obstacle, at the very same point (the contact force has
+        no direction there), overlapping obstacles, and a landmark inside an obstacle.
+        """
         sc = self.scenario
 
-        def overlaps(a, b, dmin, same):
+        def closest(a, b, same):
             d = (a[:, :, None] - b[:, None]).norm(dim=-1)
             if same:
                 d = d + torch.eye(a.shape[1], dtype=d.dtype) * 1e9
-            return bool((d < dmin).any()) if d.numel() else False
+            return float(d.min()) if d.numel() else float("inf")
 
-        if overlaps(agents, agents, 2 * sc.agent_radius, True):
-            raise ValueError("reset options: agents overlap; expected agent centres at least "
-                             f"{2 * sc.agent_radius:g} m apart")
-        if overlaps(agents, obst, sc.agent_radius + sc.obstacle_radius, False):
-            raise ValueError("reset options: an agent overlaps an obstacle; expected centres at least "
-                             f"{sc.agent_radius + sc.obstacle_radius:g} m apart")
-        if overlaps(obst, obst, 2 * sc.obstacle_radius, True):
+        if closest(agents, agents, True) == 0.0:
+            raise ValueError("reset options: two agents at the same point; expected distinct agent positions "
+                             "(agents may overlap: contact pushes them apart)")
+        if closest(agents, obst, False) == 0.0:
+            raise ValueError("reset options: an agent at the centre of an obstacle; expected it elsewhere "
+                             "(an agent may overlap an obstacle: contact pushes it out)")
+        if closest(obst, obst, True) < 2 * sc.obstacle_radius:
             raise ValueError("reset options: obstacles overlap; expected centres at least "
                              f"{2 * sc.obstacle_radius:g} m apart")
-        if overlaps(lms, obst, sc.landmark_radius + sc.obstacle_radius, False):
+        if closest(lms, obst, False) < sc.landmark_radius + sc.obstacle_radius:
             raise ValueError("reset options: a landmark lies inside an obstacle; expected centres at least "
                              f"{sc.landmark_radius + sc.obstacle_radius:g} m apart")
 
@@ -264,9 +276,8 @@ class ParticleWorld(BatchedWorld):
     def get_state(self) -> dict[str, torch.Tensor]:
         """Every episode's full state (copies): positions, velocities, team, time, reached.
 
-        Unlike ``reset(options=...)``, which starts an episode and refuses overlapping
-        bodies, :meth:`set_state` takes such a state back mid-episode (contacts included),
-        e.g. to branch copies of an episode for a search."""
+        :meth:`set_state` takes such a state back mid-episode, as it is (contacts, velocities,
+        time and team included), e.g. to branch copies of an episode for a search."""
         return {k: getattr(self, "_keep" if k == "keep" else k).clone() for k in _STATE}
 
     def set_state(self, state: dict, repeat: int = 1) -> dict[str, torch.Tensor]:

@@ -5,7 +5,9 @@ backslash when no episode reached SR 1 (the paper's rule). Plain text, markdown 
 """
 from __future__ import annotations
 
-__all__ = ["format_table", "cell", "render_rows"]
+from pathlib import Path
+
+__all__ = ["format_table", "cell", "render_rows", "scenario_label", "method_label"]
 
 _METRICS = (("steps", "Steps", r"$\downarrow$", "↓"), ("sr", "SR", r"$\uparrow$", "↑"),
             ("cr", "CR", r"$\downarrow$", "↓"))
@@ -22,6 +24,22 @@ def cell(stat, latex: bool = False) -> str:
     if latex:
         return f"{mean:.2f}\\scriptsize{{({std:.2f})}}"
     return f"{mean:.2f} ({std:.2f})"
+
+
+def _settings(values: dict) -> str:
+    return ", ".join(f"{k}={Path(v).name if k == 'checkpoint' else v}" for k, v in sorted(values.items()))
+
+
+def scenario_label(record: dict) -> str:
+    """The record's scenario with its overrides, as ``evaluate --set`` gave them: "mpe-50 (num_agents=100)"."""
+    overrides = record.get("overrides") or {}
+    return f"{record['scenario']} ({_settings(overrides)})" if overrides else record["scenario"]
+
+
+def method_label(record: dict) -> str:
+    """The record's method with its options ("h-greedy (power=2)"; a checkpoint by its file name)."""
+    options = record.get("method_options") or {}
+    return f"{record['method']} ({_settings(options)})" if options else record["method"]
 
 
 def render_rows(head: list[str], body: list[list[str]], fmt: str) -> str:
@@ -46,7 +64,9 @@ def format_table(rows, fmt: str = "markdown", layout: str = "rows") -> str:
     """Records of :func:`evaluate` as a table of "mean (std)" cells with 2 decimals.
 
     ``layout="rows"``: one row per record — Method, Scenario, Steps ↓, SR ↑, CR ↓ and the
-    decision time (ms per step). ``layout="paper"``: the paper's tables — for each scenario
+    decision time (ms per step). A record's scenario overrides and method options (``--set``)
+    show beside its scenario and method (:func:`scenario_label`, :func:`method_label`), so a
+    100-agent run of mpe-50 reads "mpe-50 (num_agents=100)". ``layout="paper"``: the paper's tables — for each scenario
     three rows (Steps, SR, CR) and one column per method. Steps is a backslash when no
     episode reached SR 1, as in the paper. ``fmt``: ``"markdown"``, ``"text"`` (aligned
     columns) or ``"latex"`` (a ``tabular``; stds in ``\\scriptsize``, the backslash as
@@ -61,12 +81,12 @@ def format_table(rows, fmt: str = "markdown", layout: str = "rows") -> str:
     try:
         if layout == "rows":
             head = ["Method", "Scenario", *map(name, _METRICS), "Decision (ms)"]
-            body = [[r["method"], r["scenario"], *(cell(r[m[0]], latex) for m in _METRICS),
+            body = [[method_label(r), scenario_label(r), *(cell(r[m[0]], latex) for m in _METRICS),
                      cell(r["decision_ms"], latex)] for r in rows]
         else:
-            methods = list(dict.fromkeys(r["method"] for r in rows))
-            scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
-            by_key = {(r["scenario"], r["method"]): r for r in rows}
+            methods = list(dict.fromkeys(map(method_label, rows)))
+            scenarios = list(dict.fromkeys(map(scenario_label, rows)))
+            by_key = {(scenario_label(r), method_label(r)): r for r in rows}
             head = ["Scenario", "Metric", *methods]
             body = [[sc if i == 0 else "", name(m),
                      *(cell(by_key[sc, meth][m[0]], latex) if (sc, meth) in by_key else "" for meth in methods)]

@@ -11,7 +11,8 @@ called as ``factory(world, **options)``; factories are named by ``"module:attrib
 strings and imported on first use, so a method's dependencies (MuJoCo, scipy's spatial
 code, the networks) load only when it is asked for. The methods live in this package:
 :mod:`.reference` (``random``, ``h-greedy``, ``h-capt``, ``h-bottleneck``), :mod:`.planners` (the "(H)" planners),
-:mod:`.drones` (the drone version of ``h-greedy``) and :mod:`.masp` (``masp``).
+:mod:`.drones` (the drone version of ``h-greedy``) and :mod:`.masp` (``masp`` and its ablations ``masp-rg``,
+``gm-mlp``, ``cae-mlp``).
 """
 from __future__ import annotations
 
@@ -47,6 +48,9 @@ METHODS: dict[str, str] = {
     "h-rrtstar": "masp_lite.policies.planners:HRRTStar",
     "h-voronoi": "masp_lite.policies.planners:HVoronoi",
     "masp": "masp_lite.policies.masp:MASPPolicy",
+    "masp-rg": "masp_lite.policies.masp:masp_rg",
+    "gm-mlp": "masp_lite.policies.masp:gm_mlp",
+    "cae-mlp": "masp_lite.policies.masp:cae_mlp",
 }
 
 
@@ -87,8 +91,10 @@ def option_types(factory) -> dict[str, object]:
 def build_policy(factory, method: str, world, options: dict):
     """``factory(world, **options)``, with a wrong option reported as one ValueError.
 
-    A misspelt key may have been meant for the scenario: when the method rejects an
-    option, the message also lists the scenario overrides, so both lists show.
+    A misspelt key may have been meant for the scenario: when the method rejects a key it
+    does not name (unknown, or refused by a factory that takes ``**options``), the message
+    also lists the scenario overrides, so both lists show. Errors about the value of an
+    option the method does name (a bad ``checkpoint`` file, ``global_step=0``) pass unchanged.
     """
     named, var_kw = method_options(factory)
     also = f"; scenario overrides are {sorted(OVERRIDES)}"
@@ -100,7 +106,7 @@ def build_policy(factory, method: str, world, options: dict):
     except TypeError as e:
         raise ValueError(f"method {method!r}: bad option(s) {sorted(options)} ({e}){also}") from None
     except ValueError as e:
-        if any(k in str(e) for k in options):
+        if any(k in str(e) for k in options if k not in named):
             raise ValueError(f"{e}{also}") from None
         raise
 

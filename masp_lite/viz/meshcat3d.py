@@ -3,9 +3,12 @@
 An episode is recorded once (:func:`record_episode`: positions, attitudes, who is flying,
 which landmarks are reached, every ``stride`` steps), then drawn as a meshcat scene:
 
-* each drone: a hub, four arms and four rotor discs (red: spin −1, blue: spin +1), with
-  its landmark's colour on the hub; its whole path as a thin line (the trail);
-* landmarks: balls of the scenario's radius; a green halo appears when one is reached;
+* each drone: a hub, four arms and four rotor discs (red: spin −1, blue: spin +1), a
+  colour of its own on the hub; its whole path as a thin line of that colour (the trail);
+* landmarks: a ball of the scenario's radius inside a translucent green marker large
+  enough to see from the default camera (:func:`marker_radius`: a 0.05 m ball on a 16 m
+  map is a pixel), on a thin stem down to the floor so its height reads; a bright halo
+  appears when one is reached;
 * crashes: a red ball appears where a drone crashed, and the drone disappears (a drone
   dropped by a team-size change disappears without one);
 * the floor: a grey tile of the map's size.
@@ -18,12 +21,16 @@ Two ways to show it:
 * :func:`play_to_html` / :func:`episode_html` — a **standalone HTML page**: meshcat's own
   static viewer (``main.min.js`` shipped in the ``meshcat`` package) followed by the
   scene's commands, embedded as base64 blobs exactly as meshcat's server writes them for
-  its ``static_html``. No server is started: the commands are recorded by a window object
-  that only stores them (:class:`RecordingWindow`). :func:`notebook_html` wraps the page
-  in an ``<iframe srcdoc=…>`` for a notebook cell, which works without a kernel-side server.
+  its ``static_html``, and an on-screen key (the method, the scenario, what each colour
+  means). No server is started: the commands are recorded by a window object that only
+  stores them (:class:`RecordingWindow`). :func:`notebook_html` wraps the page in an
+  ``<iframe srcdoc=…>`` for a notebook cell: it needs no kernel-side server, so it still
+  shows when the saved notebook is reopened.
 * :class:`LiveViewer` — a **meshcat server** bound to ``127.0.0.1`` (meshcat's own
   subprocess), as a context manager that kills it on exit, so nothing keeps running after
-  a notebook or a test: ``with LiveViewer() as v: v.show(episode); display(v.cell())``.
+  a notebook or a test: ``with LiveViewer() as v: v.show(episode); print(v.web_url)``.
+  Its page lives only as long as the server: a notebook output of it
+  (:meth:`LiveViewer.cell`) is a dead frame once the server stops.
 
 Hand-written here: only the scene layout and the recording window; geometry, animation
 encoding and the viewer are meshcat's.
@@ -37,10 +44,21 @@ import warnings
 
 import numpy as np
 
-__all__ = ["record_episode", "build_scene", "episode_html", "play_to_html", "notebook_html",
+__all__ = ["record_episode", "build_scene", "episode_html", "play_to_html", "notebook_html", "marker_radius",
            "RecordingWindow", "LiveViewer"]
 
 _FPS_STEPS = 2  # env steps per animation frame by default (0.032 s of flight)
+LANDMARK, REACHED, CRASH = 0x228833, 0x66ee44, 0xee2222  # the scene's colours, named in the on-screen key
+SPIN_MINUS, SPIN_PLUS = 0xdd4433, 0x3377dd                 # rotor discs by spin direction
+
+
+def marker_radius(scenario) -> float:
+    """Radius (m) of a landmark's translucent marker: visible from the default camera on any map.
+
+    The camera sees the whole map, so the marker grows with it: 1/80 of the map side, at
+    least 0.15 m (and never smaller than the landmark itself).
+    """
+    return max(0.15, scenario.world_size / 80, 2 * scenario.landmark_radius)
 
 
 def _meshcat():
@@ -57,7 +75,8 @@ def record_episode(method, scenario, seed: int = 0, stride: int = _FPS_STEPS, **
 
     Returns numpy arrays: ``pos`` (T, N, 3), ``quat`` (T, N, 4), ``alive`` (T, N),
     ``reached`` (T, N), ``landmark_pos`` (N, 3), plus ``dt`` (seconds per frame),
-    ``scenario`` (the Scenario), ``crash_pos`` (N, 3, NaN if none) and ``covered`` at the end.
+    ``scenario`` (the Scenario), ``crash_pos`` (N, 3, NaN if none), ``covered`` at the end
+    and ``method`` (the name, or the factory's ``__name__``).
     """
     from ..envs import make
     from ..envs.drone_model import CONTROL_DT
@@ -84,7 +103,8 @@ def record_episode(method, scenario, seed: int = 0, stride: int = _FPS_STEPS, **
     return {"pos": pos, "quat": pick("agent_quat").astype(np.float64), "alive": alive,
             "reached": pick("reached"), "covered": frames[-1]["covered"][0].numpy(), "crashed": crashed,
             "landmark_pos": frames[0]["landmark_pos"][0].numpy().astype(np.float64), "crash_pos": crash_pos,
-            "dt": CONTROL_DT * stride, "scenario": world.scenario}
+            "dt": CONTROL_DT * stride, "scenario": world.scenario,
+            "method": method if isinstance(method, str) else getattr(method, "__name__", type(method).__name__)}
 
 
 def _pose(p, q=None) -> np.ndarray:
@@ -107,6 +127,7 @@ def build_scene(vis, episode: dict) -> None:
     colours = [int(255 * r) << 16 | int(255 * gg) << 8 | int(255 * b) for r, gg, b in _palette(N)]
     vis.delete()
     ws = sc.world_size
+    mark = marker_radius(sc)
     # camera behind the map's -y edge, looking at the centre; the "rotated" frame is y-up
     vis["/Cameras/default"].set_transform(np.eye(4))
     vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 0.6 * ws, 0.8 * ws])
@@ -123,17 +144,24 @@ def build_scene(vis, episode: dict) -> None:
             arm.set_transform(_pose([x / 2, y / 2, 0], _yaw_quat(np.arctan2(y, x))))
             rotor = d["rotor"][str(k)]
             rotor.set_object(g.Cylinder(0.008, ROTOR_RADIUS),
-                             g.MeshLambertMaterial(color=0xdd4433 if s < 0 else 0x3377dd, opacity=0.7,
+                             g.MeshLambertMaterial(color=SPIN_MINUS if s < 0 else SPIN_PLUS, opacity=0.7,
                                                    transparent=True))
             rotor.set_transform(_pose([x, y, 0.02]) @ rot_x)
         path = pos[:, i][episode["alive"][:, i] | _first_gone(episode["alive"][:, i])]
         vis["trails"][str(i)].set_object(g.Line(g.PointsGeometry(path.T.astype(np.float32)),
                                                 g.LineBasicMaterial(color=colours[i])))
         lm = vis["landmarks"][str(i)]
-        lm["ball"].set_object(g.Sphere(sc.landmark_radius), g.MeshLambertMaterial(color=0x228833))
-        lm["halo"].set_object(g.Sphere(0.22), g.MeshLambertMaterial(color=0x44cc44, opacity=0.3, transparent=True))
+        lm["ball"].set_object(g.Sphere(sc.landmark_radius), g.MeshLambertMaterial(color=LANDMARK))
+        lm["marker"].set_object(g.Sphere(mark), g.MeshLambertMaterial(color=LANDMARK, opacity=0.35, transparent=True))
+        height = float(episode["landmark_pos"][i][2])
+        if height > 0:  # a stem from the floor: the landmark's height reads from any angle
+            lm["stem"].set_object(g.Cylinder(height, 0.012), g.MeshLambertMaterial(color=LANDMARK, opacity=0.5,
+                                                                                   transparent=True))
+            lm["stem"].set_transform(_pose([0, 0, -height / 2]) @ rot_x)
+        lm["halo"].set_object(g.Sphere(1.6 * mark), g.MeshLambertMaterial(color=REACHED, opacity=0.45,
+                                                                          transparent=True))
         lm.set_transform(_pose(episode["landmark_pos"][i]))
-        vis["crashes"][str(i)].set_object(g.Sphere(0.3), g.MeshLambertMaterial(color=0xee2222, opacity=0.6,
+        vis["crashes"][str(i)].set_object(g.Sphere(0.3), g.MeshLambertMaterial(color=CRASH, opacity=0.6,
                                                                              transparent=True))
         vis["crashes"][str(i)].set_transform(_pose(np.nan_to_num(episode["crash_pos"][i], nan=0.0)))
     fps = 1.0 / episode["dt"]
@@ -181,8 +209,12 @@ class RecordingWindow:
         import umsgpack
         self.commands.append(umsgpack.packb(command.lower()))
 
-    def static_html(self) -> str:
-        """meshcat's static page: its viewer script, then every command as a base64 blob."""
+    def static_html(self, overlay: str = "", title: str = "masp-lite drones") -> str:
+        """meshcat's static page: its viewer script, then every command as a base64 blob.
+
+        ``overlay`` is HTML shown over the scene's top-left corner (the key); meshcat's own
+        controls stay at the top right. ``title`` is the page's title.
+        """
         mc = _meshcat()
         root = os.path.join(os.path.dirname(mc.__file__), "viewer", "dist", "main.min.js")
         with open(root, encoding="utf-8") as f:
@@ -191,19 +223,39 @@ class RecordingWindow:
             'fetch("data:application/octet-binary;base64,{}").then(r => r.arrayBuffer())'
             ".then(b => viewer.handle_command_bytearray(new Uint8Array(b)));\n".format(
                 base64.b64encode(c).decode("ascii")) for c in self.commands)
-        return ("<!DOCTYPE html>\n<html><head><meta charset=utf-8><title>masp-lite drones</title>"
-                "<style>body{margin:0}#meshcat-pane{width:100vw;height:100vh;overflow:hidden}</style></head>"
-                f"<body><div id=\"meshcat-pane\"></div><script>{viewer_js}</script><script>"
+        return (f"<!DOCTYPE html>\n<html><head><meta charset=utf-8><title>{html_lib.escape(title)}</title>"
+                "<style>body{margin:0}#meshcat-pane{width:100vw;height:100vh;overflow:hidden}"
+                "#masp-key{position:absolute;top:8px;left:8px;z-index:10;background:rgba(255,255,255,.85);"
+                "font:12px/1.45 sans-serif;padding:6px 9px;border-radius:4px;pointer-events:none}"
+                "#masp-key i{display:inline-block;width:10px;height:10px;border-radius:50%;margin-right:5px}"
+                "</style></head>"
+                f"<body><div id=\"meshcat-pane\"></div>{overlay}<script>{viewer_js}</script><script>"
                 "var viewer = new MeshCat.Viewer(document.getElementById('meshcat-pane'));\n"
                 f"{commands}</script></body></html>")
 
 
+def _key(episode: dict) -> str:
+    """The on-screen key of a recorded episode: method, scenario, outcome, and what each colour means."""
+    sc, esc = episode["scenario"], html_lib.escape
+    swatch = lambda colour, text: f'<i style="background:#{colour:06x}"></i>{text}<br>'  # noqa: E731
+    covered = f"{int(np.sum(episode['covered']))}/{len(episode['covered'])} landmarks covered at the end"
+    return (f'<div id="masp-key"><b>{esc(str(episode.get("method", "")))}</b> on {esc(sc.name)}: {covered}<br>'
+            + swatch(LANDMARK, "landmark (translucent marker, stem to the floor)")
+            + swatch(REACHED, "halo: landmark reached")
+            + swatch(CRASH, "crash")
+            + swatch(SPIN_MINUS, "rotor spinning −1")
+            + swatch(SPIN_PLUS, "rotor spinning +1")
+            + "hub and trail: one colour per drone<br>"
+            + "drag to rotate, scroll to zoom; replay: Open Controls → Animations</div>")
+
+
 def episode_html(episode: dict) -> str:
-    """The standalone page (str) of a recorded episode."""
+    """The standalone page (str) of a recorded episode, with its on-screen key."""
     mc = _meshcat()
     window = RecordingWindow()
     build_scene(mc.Visualizer(window=window), episode)
-    return window.static_html()
+    title = f"masp-lite: {episode.get('method', '')} on {episode['scenario'].name}"
+    return window.static_html(overlay=_key(episode), title=title)
 
 
 def play_to_html(method, scenario, out, seed: int = 0, **overrides) -> str:
@@ -243,7 +295,10 @@ class LiveViewer:
         build_scene(self.vis, episode)
 
     def cell(self, height: int = 480):
-        """The viewer as a notebook output (an iframe on the local server)."""
+        """The viewer as a notebook output: an iframe on the local server, blank once it stops.
+
+        For a notebook that is saved and reopened, show :func:`notebook_html` instead.
+        """
         return self.vis.jupyter_cell(height=height)
 
     def close(self) -> None:

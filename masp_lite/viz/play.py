@@ -1,6 +1,8 @@
 """Record one episode of a method and write it to a file (the ``play`` command's work).
 
-* ``.gif`` / ``.mp4`` on a particle scenario: a 2-D animation (:mod:`.anim2d`);
+* ``.gif`` / ``.mp4`` on a particle scenario: a 2-D animation (:mod:`.anim2d`) titled with
+  the method, with a colour key, short trails and — with ``goals=True`` — a line from each
+  agent to the goal the policy currently pursues;
 * ``.html``, and every drone scenario: a standalone 3-D meshcat page from
   :func:`masp_lite.viz.meshcat3d.play_to_html`.
 """
@@ -16,8 +18,12 @@ from ..policies import method_options as options_of
 __all__ = ["play"]
 
 
-def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_options=None) -> Path:
-    """Record one episode (world 0, seeded by ``seed``) and write it to ``out``; returns the path."""
+def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_options=None,
+         goals: bool = False) -> Path:
+    """Record one episode (world 0, seeded by ``seed``) and write it to ``out``; returns the path.
+
+    ``goals`` (2-D only) draws each agent's line to its current goal, when the method exposes goals.
+    """
     overrides, options = dict(overrides or {}), dict(method_options or {})
     sc = get_scenario(scenario, **overrides)
     out = Path(out)
@@ -30,6 +36,8 @@ def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_
         if options:
             raise ValueError(f"the 3-D export takes scenario overrides only; got method option(s) "
                              f"{sorted(options)}")
+        if goals:
+            raise ValueError("goal lines are drawn in 2-D only; expected a .gif or .mp4 output for --goals")
         try:
             meshcat3d = importlib.import_module("masp_lite.viz.meshcat3d")
         except ModuleNotFoundError as e:
@@ -45,4 +53,4 @@ def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_
     if "seed" in options_of(factory)[0]:  # as evaluate does: the seed reaches the method too
         options.setdefault("seed", seed)
     policy = build_policy(factory, method, world, options)
-    return save(animate(record(world, policy, seed=seed)), out)
+    return save(animate(record(world, policy, seed=seed), title=f"{method} on {sc.name}", goals=goals), out)

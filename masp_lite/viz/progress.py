@@ -4,7 +4,7 @@ A training run (:func:`masp_lite.training.train`) writes one ``progress.csv`` ro
 iteration: environment steps, wall-clock, the training episodes' SR / Steps / CR (sampled
 actions), both levels' mean rewards, losses and entropies, and — every ``eval_every``
 iterations — the deterministic evaluation (``eval_sr``, ``eval_steps``, ``eval_cr``; empty
-cells in the other rows). These functions are what chapter 06 uses to look at a run:
+cells in the other rows). These functions are what chapters 06 and 10 use to look at runs:
 
 * :func:`read_progress` — the file as columns of floats (NaN where a cell is empty);
 * :func:`last_evaluation` — the last row that has an evaluation;
@@ -12,6 +12,9 @@ cells in the other rows). These functions are what chapter 06 uses to look at a 
   training stage, oldest first, with its curve), read from ``results/training/`` of a
   source checkout; ``None`` when the package is installed without that folder;
 * :func:`plot_progress` — SR, Steps, CR and both rewards against environment steps.
+* :func:`kept_curves` and :func:`plot_seed_bands` — the curves of a recipe's kept training
+  seeds (``results/training/FOLDER/``), and their mean and band over seeds (chapter 10's
+  ablation figure).
 
 Why columns of floats: a curve is plotted and compared as an array, and NaN keeps the
 evaluation columns aligned with the iterations (``np.isnan`` finds the evaluated rows).
@@ -26,7 +29,8 @@ import numpy as np
 
 from ..weights import HERE, base_scenario, read_manifest
 
-__all__ = ["read_progress", "last_evaluation", "training_history", "plot_progress", "REPO_ROOT"]
+__all__ = ["read_progress", "last_evaluation", "training_history", "plot_progress", "kept_curves", "plot_seed_bands",
+           "REPO_ROOT"]
 
 #: The source checkout's root (``masp_lite/weights/`` -> two levels up): manifest entries name
 #: their training history relative to it.
@@ -95,17 +99,21 @@ def training_history(scenario: str, root=None) -> dict | None:
 def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, baseline_label: str = "h-greedy"):
     """One figure of training curves against environment steps; returns the figure.
 
-    Three panels (SR ↑, Steps ↓, CR ↓) show the training episodes (sampled actions) and the
-    periodic deterministic evaluation; ``baseline`` (``{"sr", "steps", "cr"}`` means, e.g.
-    h-greedy's) adds a dashed line, labelled ``baseline_label``, to each. A fourth panel shows the mean rewards of both
+    Three panels (SR ↑, Steps ↓, CR ↓) show the training rollouts (sampled actions) and the
+    periodic evaluation (deterministic policies), in the words of ``train``'s progress bar;
+    ``baseline`` (``{"sr", "steps", "cr"}`` means, e.g. h-greedy's) adds a dashed line,
+    labelled ``baseline_label``, to each. A fourth panel shows the mean rewards of both
     levels, R_GM (eq. 1) and R_CAE (eq. 5). Call ``plt.show()`` (or let the notebook show it).
+    The step axes carry at most five ticks in thousands / millions (``50k``, ``1.2M``), so
+    their labels never run into each other on the narrow panels.
     """
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import EngFormatter, MaxNLocator
 
     x = columns["env_steps"]
     fig, axes = plt.subplots(1, 4, figsize=(16, 3.2))
     for ax, (key, label) in zip(axes, [("sr", "SR ↑"), ("steps", "Steps ↓"), ("cr", "CR ↓")]):
-        ax.plot(x, columns[f"train_{key}"], alpha=0.5, label="training (sampled)")
+        ax.plot(x, columns[f"train_{key}"], alpha=0.5, label="training rollouts (sampled)")
         evaluated = ~np.isnan(columns[f"eval_{key}"])
         if evaluated.any():
             ax.plot(x[evaluated], columns[f"eval_{key}"][evaluated], "o-", label="evaluation (deterministic)")
@@ -117,6 +125,52 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
     axes[3].plot(x, columns["cae_reward"], label="R_CAE (eq. 5)")
     axes[3].set(title="mean rewards", xlabel="environment steps")
     axes[3].legend(fontsize=8)
+    for ax in axes:
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=4, integer=True))
+        ax.xaxis.set_major_formatter(EngFormatter(sep=""))
     fig.suptitle(title)
     fig.tight_layout()
     return fig
+
+
+def kept_curves(folder: str, scenario: str = "mpe-20", root=None) -> dict[int, dict[str, np.ndarray]]:
+    """The curves of a recipe's kept training seeds: ``{seed: read_progress(...)}``.
+
+    ``folder`` is a folder of ``results/training/`` (``"faithful"``, ``"masp-rg"``, ...) holding
+    ``SCENARIO-seedK.progress.csv`` (the last stage of each seed, see
+    :func:`masp_lite.training.ship_run`); ``{}`` when there is none (an installed package)."""
+    base = Path(REPO_ROOT if root is None else root) / "results" / "training" / folder
+    out = {}
+    for path in sorted(base.glob(f"{scenario}-seed*.progress.csv")):
+        seed = path.name[len(f"{scenario}-seed"):-len(".progress.csv")]   # not SCENARIO-seedK.stageJ.progress.csv
+        if seed.isdigit():
+            out[int(seed)] = read_progress(path)
+    return out
+
+
+def plot_seed_bands(groups: dict, key: str = "train_sr", smooth: int = 5, ax=None, ylabel: str | None = None):
+    """Mean and min–max band over seeds of column ``key`` against environment steps, one line per group.
+
+    ``groups``: ``{label: {seed: columns}}`` (e.g. :func:`kept_curves` of each variant). Each seed's
+    curve is smoothed by a running mean over ``smooth`` iterations and cut to the shortest
+    seed of its group; a group with one seed is a line without a band. Returns the axes."""
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import EngFormatter, MaxNLocator
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 3.6))
+    kernel = np.ones(max(1, smooth)) / max(1, smooth)
+    for label, seeds in groups.items():
+        if not seeds:
+            continue
+        n = min(len(c[key]) for c in seeds.values())
+        ys = np.stack([np.convolve(c[key][:n], kernel, mode="valid") for c in seeds.values()])
+        x = next(iter(seeds.values()))["env_steps"][:n][len(kernel) - 1:]
+        line, = ax.plot(x, ys.mean(0), label=f"{label} ({len(seeds)} seed{'s' if len(seeds) > 1 else ''})")
+        if len(seeds) > 1:
+            ax.fill_between(x, ys.min(0), ys.max(0), color=line.get_color(), alpha=0.2)
+    ax.set(xlabel="environment steps", ylabel=ylabel or key)
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=5, integer=True))
+    ax.xaxis.set_major_formatter(EngFormatter(sep=""))
+    ax.legend(fontsize=8)
+    return ax

@@ -30,7 +30,9 @@ import hashlib
 import io
 import json
 import os
+import re
 import tempfile
+import textwrap
 from pathlib import Path
 
 import torch
@@ -46,6 +48,10 @@ FORMAT = "masp-lite/masp-weights/1"
 HERE = Path(__file__).resolve().parent
 MANIFEST = HERE / "manifest.json"
 _BASE = {"mpe-20to10": "mpe-20", "mpe-50to20": "mpe-50"}
+_ZIP_MAGIC, _PICKLE_MAGIC = b"PK", b"\x80"  # torch.save's zip archive; its legacy pickle format
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+#: How to use weights trained elsewhere anyway, in both spellings: the one of the command line and Python's.
+_ANYWAY = "to use them anyway: --set any_scenario=true on the command line, any_scenario=True in Python"
 
 
 def base_scenario(scenario) -> str:
@@ -121,19 +127,44 @@ def default_checkpoint(scenario) -> Path:
     return HERE / entry["file"]
 
 
+def _reason(error: Exception, width: int = 200) -> str:
+    """The first sentence of torch's message that says what went wrong, shortened at a word boundary.
+
+    ``weights_only`` refusals are a paragraph of advice whose last line names the object
+    refused ("WeightsUnpickler error: Unsupported global: ..."): that line is the reason."""
+    lines = [line.strip() for line in _ANSI.sub("", str(error)).splitlines() if line.strip()]
+    picked = next((line for line in lines if line.startswith("WeightsUnpickler error")), lines[0] if lines else "")
+    return textwrap.shorten(picked.split(". ")[0], width, placeholder=" ...") or "no message"
+
+
 def read_weights(path) -> dict:
-    """Load and validate the raw record of a weights file (no networks built)."""
+    """Load and validate the raw record of a weights file (no networks built).
+
+    A file that is not one says what it is instead: a training state (``state.pt`` of a run
+    folder: pass the ``weights.pt`` beside it), not a torch file at all, empty, truncated,
+    or holding Python objects that ``torch.load(weights_only=True)`` refuses.
+    """
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"checkpoint {str(path)!r}: expected an existing weights file")
     shipped = {v["file"]: v for v in read_manifest().values()}
     if path.resolve().parent == HERE and path.name in shipped and sha256(path) != shipped[path.name]["sha256"]:
-        raise ValueError(f"checkpoint {path.name!r}: contents differ from manifest.json (corrupt or replaced)")
+        raise ValueError(f"checkpoint {str(path)!r}: contents differ from manifest.json (corrupt or replaced)")
+    with open(path, "rb") as f:
+        head = f.read(4)
+    if not head:
+        raise ValueError(f"checkpoint {str(path)!r}: the file is empty; expected a MASP weights file")
+    if not head.startswith((_ZIP_MAGIC, _PICKLE_MAGIC)):
+        raise ValueError(f"checkpoint {str(path)!r}: not a torch file (it starts with {head!r}); expected a MASP "
+                         "weights file saved by torch.save, such as a run's weights.pt")
     try:
         rec = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:  # truncated zip, wrong pickle, ...
+    except Exception as e:  # truncated zip, objects weights_only refuses, ...
         raise ValueError(f"checkpoint {str(path)!r}: expected a MASP weights file, could not read it "
-                         f"({type(e).__name__}: {str(e)[:80]})") from None
+                         f"({type(e).__name__}: {_reason(e)})") from None
+    if isinstance(rec, dict) and {"nets", "iterations"} <= set(rec):
+        raise ValueError(f"checkpoint {str(path)!r}: this is a training state (a run's state.pt, for --resume); "
+                         "pass the run's weights.pt (in the same folder)")
     if not isinstance(rec, dict) or rec.get("format") != FORMAT:
         raise ValueError(f"checkpoint {str(path)!r}: expected format {FORMAT!r}, got "
                          f"{rec.get('format') if isinstance(rec, dict) else type(rec).__name__!r}")
@@ -156,16 +187,15 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
     if scenario is not None and not any_scenario and rec["scenario"] not in (base_scenario(scenario),
                                                                              trained_preset(scenario)):
         raise ValueError(f"checkpoint {str(path)!r} was trained for {rec['scenario']!r}; expected weights for "
-                         f"{base_scenario(scenario)!r} (pass any_scenario=True to use them anyway)")
+                         f"{base_scenario(scenario)!r} ({_ANYWAY})")
     if scenario is not None and not any_scenario and not isinstance(scenario, str) and \
             trained_world(rec) != scenario.world:
         raise ValueError(f"checkpoint {str(path)!r} was trained in the world {world_name(trained_world(rec))}; "
-                         f"expected weights for {world_name(scenario.world)} (pass any_scenario=True to use "
-                         "them anyway)")
+                         f"expected weights for {world_name(scenario.world)} ({_ANYWAY})")
     try:
         nets = MASPNets(**rec["arch"])
         nets.load_state_dict(rec["state_dict"])
     except (TypeError, ValueError, RuntimeError, KeyError) as e:
         raise ValueError(f"checkpoint {str(path)!r}: architecture does not match MASPNets "
-                         f"({type(e).__name__}: {str(e)[:120]})") from None
+                         f"({type(e).__name__}: {_reason(e)})") from None
     return nets, rec
