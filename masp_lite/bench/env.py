@@ -4,15 +4,19 @@ Measures :class:`~masp_lite.envs.particle.ParticleWorld` on ``mpe-50`` (50 agent
 30 obstacles, horizon 90) with uniformly random action ids, for 1, 64 and 256 parallel
 worlds, and — when the test-only reference ``mpe2`` is installed — PettingZoo's
 ``simple_spread_v3`` with 50 agents through its parallel API with random actions, *in the
-same run*, so that the ratio compares like with like on whatever machine runs it.
+same run*, so that the ratio compares like with like on whatever machine runs it. When
+TorchRL is installed (``pip install masp-lite[torchrl]``), the TorchRL face
+(:class:`~masp_lite.envs.torchrl.ParticleTorchRLEnv`) is measured too, at the batch size of
+the ratio, through ``step_and_maybe_reset`` as TorchRL's collectors step it (observations,
+rewards, metrics and auto-resets included); its overhead is native / TorchRL agent-steps/s.
 
 What is counted: one agent-step is one agent advanced by one environment step
 (``steps × worlds × agents``). Episode resets **are included** in the timed loop (a world
 that reaches its horizon is reset, as in training), and so is drawing the random actions.
 Each measurement warms up for a few steps, then runs for ``--seconds`` of wall time, split
-into ``--rounds`` that alternate between masp-lite and mpe2; each figure is the median over
-rounds and the ratio the median of the per-round ratios, so a load change mid-run hits both
-sides alike.
+into ``--rounds`` that alternate between masp-lite, its TorchRL face and mpe2; each figure
+is the median over rounds and each ratio the median of the per-round ratios, so a load
+change mid-run hits every side alike.
 
 The machine's load average is printed before and after: torch's intra-op threads degrade
 badly when the cores are shared (on a busy 2-core machine, ``--threads 2`` measured ~25×
@@ -25,6 +29,7 @@ Options: ``--seconds`` per measurement, ``--rounds``, ``--threads`` torch thread
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import statistics
@@ -60,6 +65,26 @@ def measure_masp(num_envs: int, seconds: float, seed: int = 0) -> float:
             world.reset()
 
     return calls_per_second(one_step, seconds) * num_envs * world.num_agents
+
+
+def measure_torchrl(num_envs: int, seconds: float, seed: int = 0) -> float | None:
+    """Agent-steps/s of the TorchRL face over ``num_envs`` mpe-50 worlds, random actions and
+    auto-resets through ``step_and_maybe_reset``; None without TorchRL."""
+    if importlib.util.find_spec("torchrl") is None:
+        return None
+    from ..envs.torchrl import ParticleTorchRLEnv
+
+    env = ParticleTorchRLEnv(SCENARIO, num_envs=num_envs, seed=seed)
+    gen = torch.Generator().manual_seed(seed)
+    shape = (num_envs, env.num_agents)
+    td = env.reset()
+
+    def one_step():
+        nonlocal td
+        td.set(("agents", "action"), torch.randint(0, NUM_ACTIONS, shape, generator=gen))
+        _, td = env.step_and_maybe_reset(td)
+
+    return calls_per_second(one_step, seconds) * num_envs * env.num_agents
 
 
 def measure_mpe2(seconds: float, num_agents: int = 50, horizon: int = 90, seed: int = 0) -> float | None:
@@ -105,24 +130,34 @@ def run(args: argparse.Namespace) -> int:
     print(f"bench env: {SCENARIO} (50 agents, 30 obstacles), random actions, resets included, "
           f"{args.threads} thread(s), {args.seconds:g} s per measurement in {args.rounds} round(s), "
           f"{os.cpu_count()} CPU(s), load average {load_before}")
-    # rounds alternate between the two sides, so a load change hits both alike
+    # rounds alternate between the sides, so a load change hits all alike
     share = args.seconds / args.rounds
     masp_rounds = {b: [] for b in args.worlds}
-    ref_rounds = []
+    base = RATIO_AT if RATIO_AT in args.worlds else max(args.worlds)
+    ref_rounds, trl_rounds = [], []
     for r in range(args.rounds):
         for b in args.worlds:
             masp_rounds[b].append(measure_masp(b, share, seed=r))
+        trl_rounds.append(measure_torchrl(base, share, seed=r))
         ref_rounds.append(measure_mpe2(share, seed=r))
     masp = {b: statistics.median(v) for b, v in masp_rounds.items()}
     for b in args.worlds:
         print(f"  masp-lite  {b:>5} world(s)      {masp[b]:>14,.0f} agent-steps/s")
-    ref = ratio = base = None
+    trl = overhead = None
+    if trl_rounds[0] is None:
+        print("  TorchRL not installed: no TorchRL-face measurement")
+    else:
+        trl = statistics.median(trl_rounds)
+        overhead = statistics.median(m / t for m, t in zip(masp_rounds[base], trl_rounds))
+        print(f"  TorchRL face {base:>3} world(s)      {trl:>14,.0f} agent-steps/s")
+        print(f"  overhead of the TorchRL face at {base} worlds: {overhead:.2f}x the native world's time "
+              "(median over rounds)")
+    ref = ratio = None
     if ref_rounds[0] is None:
         print("  mpe2 not installed: no reference measurement")
     else:
         ref = statistics.median(ref_rounds)
         print(f"  mpe2 simple_spread_v3 (1 episode) {ref:>14,.0f} agent-steps/s")
-        base = RATIO_AT if RATIO_AT in masp else max(masp)
         ratio = statistics.median(m / q for m, q in zip(masp_rounds[base], ref_rounds))
         print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x (median over rounds)")
     load_after = _load()
@@ -134,7 +169,9 @@ def run(args: argparse.Namespace) -> int:
                   "load_average": {"before": load_before, "after": load_after}, "torch": torch.__version__,
                   "masp_agent_steps_per_s": {str(b): v for b, v in masp.items()},
                   "mpe2_agent_steps_per_s": ref,
-                  "ratio": None if ratio is None else {"worlds": base, "value": ratio}}
+                  "ratio": None if ratio is None else {"worlds": base, "value": ratio},
+                  "torchrl_agent_steps_per_s": trl,
+                  "torchrl_overhead": None if overhead is None else {"worlds": base, "value": overhead}}
         with open(args.json, "w") as f:
             json.dump(result, f, indent=2)
         print(f"  wrote {args.json}")
