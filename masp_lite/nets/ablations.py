@@ -2,11 +2,13 @@
 replaced by an MLP over the same inputs.
 
 * :class:`GoalMatcherMLP` — "GM w.o. Graph": for agent ``k``, an MLP over the
-  concatenated node inputs of every agent (agent ``k`` first, then the others in index
-  order, as the paper lists them) and every goal, plus ``k``'s two distance channels to
-  each goal (:func:`~masp_lite.nets.masp.gm_inputs`), -> logits over the goals. The paper
-  says "position information"; we give the MLP exactly what the graph version reads, so
-  the ablation removes the graphs and nothing else.
+  concatenated map-normalised positions of every agent (agent ``k`` first, then the others
+  in index order) and every goal -> logits over the goals: the paper's "concatenated
+  position information of all agents and goals for agent k, with the position information
+  of agent k listed first". It gets positions only, not the graph version's nearest-distance
+  node inputs or its two distance channels per pair (:func:`~masp_lite.nets.masp.gm_inputs`):
+  given those, an MLP matched the graphs (docs/research-log.md, 2026-12-02), since they
+  already say which agent is closest to each goal.
 * :class:`FusionMLP` — "CAE w.o. Graph": the executor's Group Information Fusion replaced
   by an MLP over agent ``k``'s view of every agent (:func:`~masp_lite.nets.masp.pair_features`:
   relative position, distance, relative velocity; ``k`` first, then the others), -> the
@@ -41,23 +43,24 @@ def _check_size(name: str, team_size: int, got: int) -> None:
 class GoalMatcherMLP(nn.Module):
     """"GM w.o. Graph": ``forward(agent_x, goal_x, dist, alive, goal_mask=None) -> logits`` (B, N, M).
 
-    Same signature as :class:`~masp_lite.nets.masp.GoalMatcher`; ``team_size`` agents and as
-    many goals. Dropped agents' inputs are zeroed."""
+    Same signature as :class:`~masp_lite.nets.masp.GoalMatcher` (it reads the positions in
+    ``agent_x`` and ``goal_x`` and ignores the rest); ``team_size`` agents and as many goals.
+    Dropped agents' positions are zeroed."""
 
     def __init__(self, width: int = 32, team_size: int = 20):
         super().__init__()
         self.team_size = team_size
         n = team_size
-        self.net = mlp([n * 5 + n * 4 + n * 2, 4 * width, 4 * width, n])
+        self.net = mlp([n * 2 + n * 2, 4 * width, 4 * width, n])
         self.register_buffer("order", agent_first(n), persistent=False)
 
     def forward(self, agent_x, goal_x, dist, alive, goal_mask=None):
         B, N = agent_x.shape[:2]
         _check_size("gm-mlp", self.team_size, N)
         _check_size("gm-mlp (goals)", self.team_size, goal_x.shape[1])
-        a = agent_x * alive.unsqueeze(-1).to(agent_x.dtype)
+        a = agent_x[..., :2] * alive.unsqueeze(-1).to(agent_x.dtype)        # positions / (world_size / 2)
         agents = a[:, self.order].reshape(B, N, -1)                         # row k: agent k first
-        x = torch.cat([agents, goal_x.reshape(B, 1, -1).expand(B, N, -1), dist.reshape(B, N, -1)], dim=-1)
+        x = torch.cat([agents, goal_x[..., :2].reshape(B, 1, -1).expand(B, N, -1)], dim=-1)
         logits = self.net(x)
         if goal_mask is not None:
             logits = logits.masked_fill(~goal_mask.unsqueeze(1), float("-inf"))
