@@ -26,7 +26,7 @@ from pathlib import Path
 
 from ..envs import MPE2_WORLD, get_scenario, world_name
 from ..policies import METHODS, get_factory, method_options
-from ..weights import base_scenario, read_manifest, trained_preset
+from ..weights import KEPT_DIR, base_scenario, read_manifest, trained_preset
 from .evaluate import evaluate
 from .paper import PAPER
 from .tables import cell, render_rows
@@ -55,7 +55,7 @@ class Table:
 
 
 #: ``results/`` of the source checkout this package runs from: the committed records.
-RESULTS_DIR = Path(__file__).resolve().parents[2] / "results"
+RESULTS_DIR = KEPT_DIR.parent
 
 
 def load_records(root=RESULTS_DIR) -> list[dict]:

@@ -15,21 +15,18 @@ never names the wrong method.
 """
 from __future__ import annotations
 
-from pathlib import Path
-
 import torch
 
 from ..algos.assignment import hungarian
 from ..nets.decoding import DECODERS, joint_argmax, random_goals, sequential_sample
 from ..nets.masp import MASPNets
-from ..weights import load_weights
+from ..weights import KEPT_DIR, load_weights
 
 __all__ = ["MASPPolicy", "ABLATIONS", "masp_rg", "gm_mlp", "cae_mlp"]
 
 #: The paper's ablations: method name -> the NetConfig settings its weights must have.
 ABLATIONS = {"masp-rg": {"goal_matcher": "random"}, "gm-mlp": {"goal_matcher": "mlp"},
              "cae-mlp": {"executor": "mlp"}}
-_KEPT = Path(__file__).resolve().parents[2] / "results" / "training"
 
 
 class MASPPolicy:
@@ -67,7 +64,7 @@ class MASPPolicy:
             raise ValueError(f"{name}: expected a particle world (mpe-* scenario)")
         self.world = world
         if checkpoint is None and name in ABLATIONS:
-            checkpoint = _KEPT / name / "mpe-20-seed0.pt"
+            checkpoint = KEPT_DIR / name / "mpe-20-seed0.pt"
             if not checkpoint.exists():
                 raise ValueError(f"{name}: no weights given and none kept at results/training/{name}/ (a source "
                                  "checkout keeps them); pass checkpoint=PATH")

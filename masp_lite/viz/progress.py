@@ -27,14 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..weights import HERE, base_scenario, read_manifest
+from ..weights import KEPT_DIR, REPO_ROOT, base_scenario, read_manifest
 
-__all__ = ["read_progress", "last_evaluation", "training_history", "plot_progress", "kept_curves", "plot_seed_bands",
-           "REPO_ROOT"]
+__all__ = ["read_progress", "last_evaluation", "training_history", "plot_progress", "kept_curves", "plot_seed_bands"]
 
-#: The source checkout's root (``masp_lite/weights/`` -> two levels up): manifest entries name
-#: their training history relative to it.
-REPO_ROOT = HERE.parents[1]
 
 
 def read_progress(path) -> dict[str, np.ndarray]:
@@ -139,7 +135,7 @@ def kept_curves(folder: str, scenario: str = "mpe-20", root=None) -> dict[int, d
     ``folder`` is a folder of ``results/training/`` (``"faithful"``, ``"masp-rg"``, ...) holding
     ``SCENARIO-seedK.progress.csv`` (the last stage of each seed, see
     :func:`masp_lite.training.ship_run`); ``{}`` when there is none (an installed package)."""
-    base = Path(REPO_ROOT if root is None else root) / "results" / "training" / folder
+    base = (KEPT_DIR if root is None else Path(root) / "results" / "training") / folder
     out = {}
     for path in sorted(base.glob(f"{scenario}-seed*.progress.csv")):
         seed = path.name[len(f"{scenario}-seed"):-len(".progress.csv")]   # not SCENARIO-seedK.stageJ.progress.csv

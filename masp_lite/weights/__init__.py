@@ -40,13 +40,19 @@ import torch
 from ..envs.scenarios import MPE2_WORLD, get_scenario, world_name
 from ..nets.masp import MASPNets
 
-__all__ = ["FORMAT", "HERE", "MANIFEST", "save_weights", "load_weights", "read_weights", "read_manifest",
-           "trained_world",
+__all__ = ["FORMAT", "HERE", "MANIFEST", "REPO_ROOT", "KEPT_DIR", "save_weights", "load_weights", "read_weights",
+           "read_manifest", "trained_world",
            "default_checkpoint", "base_scenario", "trained_preset", "sha256", "atomic_write_bytes"]
 
 FORMAT = "masp-lite/masp-weights/1"
 HERE = Path(__file__).resolve().parent
 MANIFEST = HERE / "manifest.json"
+#: The source checkout's root (``masp_lite/weights/`` -> two levels up): shipped manifest entries name their
+#: training history relative to it.
+REPO_ROOT = HERE.parents[1]
+#: ``results/training/`` of a source checkout: training histories and the kept weights of training seeds and
+#: recipes that are not shipped (absent from an installed package).
+KEPT_DIR = REPO_ROOT / "results" / "training"
 _BASE = {"mpe-20to10": "mpe-20", "mpe-50to20": "mpe-50"}
 _ZIP_MAGIC, _PICKLE_MAGIC = b"PK", b"\x80"  # torch.save's zip archive; its legacy pickle format
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
