@@ -105,13 +105,15 @@ def test_ablation_tables_put_each_variants_seeds_in_its_column():
     records = [kept("masp-rg", "masp-rg", 31.0), kept("masp", "faithful", 25.0), kept("masp", "faithful", 27.0, 1),
                kept("masp", "group-size-2", 29.0), _rec("masp", "mpe-20", 20.0)]   # the shipped one: in none
     ab = rp.build("ab", records)
-    assert ab.rows[0][3:] == ["31.00 (1.00)", "—", "—", "26.00 (1.41)"] and ab.rows[1][3:7] == \
+    # matched seeds: the variant has seed 0 only, so MASP's column is its seed 0 (25), not the mean of 0 and 1
+    assert ab.rows[0][3:] == ["31.00 (1.00)", "—", "—", "25.00 (1.00)"] and ab.rows[1][3:7] == \
         ["35.91 (2.73)", "\\", "28.25 (3.21)", "24.41 (2.66)"]
-    assert rp.build("groupsize", records).rows[0][3:] == ["29.00 (1.00)", "26.00 (1.41)", "—"]
+    assert rp.build("groupsize", records).rows[0][3:] == ["29.00 (1.00)", "25.00 (1.00)", "—"]
+    assert rp.build("globalsteps", records).rows[0][3:] == ["—", "26.00 (1.41)", "—"]   # nothing to match: both seeds
     assert rp.build("globalsteps", records).rows[1][3:] == ["24.23 (2.11)", "24.41 (2.66)", "29.59 (2.43)"]
     claims = {r[0]: r[1:] for r in rp.build("ablation-claims", records).rows}
     assert claims["MASP w. RG needs more Steps than MASP"] == \
-        ["35.91 vs 24.41 (32.0 % fewer)", "31.00 vs 26.00 (16.1 % fewer)", "yes"]
+        ["35.91 vs 24.41 (32.0 % fewer)", "31.00 vs 25.00 (19.4 % fewer)", "yes"]
     assert claims["N_g = 2 needs more Steps than N_g = 3"][2] == "yes"
     assert claims["GM w.o. Graph fails (SR < 0.5)"] == ["SR 0.04", "—", "—"]
 

@@ -141,41 +141,54 @@ def pool(records) -> dict:
     return out
 
 
-def pick(records, method: str, scenario: str, kept: str = "") -> dict | None:
+def pick(records, method: str, scenario: str, kept: str = "", seeds=None) -> dict | None:
     """The record of ``method`` on the preset ``scenario`` in the preset's world, or None.
 
     A record from another world definition is never taken; two candidates are one clear
     error (the table would otherwise depend on file order). A learned method's records of
     several training seeds (:func:`training_seed`) are pooled into one (:func:`pool`), with
     ``training_seeds`` saying which. ``kept`` picks the training seeds of another recipe
-    (see :func:`training_seed`); then only those records count."""
+    (see :func:`training_seed`); then only those records count. ``seeds`` keeps only those
+    training seeds (None: all)."""
     world = get_scenario(scenario).world
     mine = [r for r in records if r["method"] == method and r["scenario"] == scenario and r.get("world", {}) == world]
     by_seed = {}
     if _learned(method):
         for r in mine:
-            if training_seed(r, kept) is not None:
-                by_seed.setdefault(training_seed(r, kept), []).append(r)
-    groups = list(by_seed.values()) if by_seed or kept else [[r for r in mine if _plain(r)]]
+            k = training_seed(r, kept)
+            if k is not None and (seeds is None or k in seeds):
+                by_seed.setdefault(k, []).append(r)
+    groups = list(by_seed.values()) if by_seed or kept or seeds is not None else [[r for r in mine if _plain(r)]]
     for found in groups:
         if len(found) > 1:
             raise ValueError(f"reproduce: {len(found)} records of {method} on {scenario}: "
                              f"{[r.get('path') for r in found]}; expected one")
-    if len(by_seed) > 1 or (kept and by_seed):
+    if len(by_seed) > 1 or ((kept or seeds is not None) and by_seed):
         return {**pool([by_seed[k][0] for k in sorted(by_seed)]), "training_seeds": sorted(by_seed)}
     return groups[0][0] if groups and groups[0] else None
 
 
-def _metric_table(name, title, scenarios, columns, records, latex, paper=None):
+def _common_seeds(records, scenario, columns):
+    """The training seeds that every column with kept seeds has (None when no column has any)."""
+    have = [set(r["training_seeds"]) for _, m, kept in columns if kept
+            for r in [pick(records, m, scenario, kept)] if r is not None]
+    return set.intersection(*have) if have else None
+
+
+def _metric_table(name, title, scenarios, columns, records, latex, paper=None, matched=False):
     """Three metric rows per scenario, ours above the paper's, one column per ``(label, method, kept)``.
 
     ``kept`` picks a recipe's kept training seeds (:func:`pick`); ``paper(scenario, i)`` is
-    column ``i``'s paper cell, or None (default: ``PAPER[name][(scenario, method)]``)."""
+    column ``i``'s paper cell, or None (default: ``PAPER[name][(scenario, method)]``). With
+    ``matched``, the kept-seed columns pool only the training seeds all of them have, so that
+    a variant trained with seed 0 alone is compared with MASP's seed 0, not with a mean over
+    seeds it lacks."""
     paper = paper or (lambda sc, i: PAPER[name].get((sc, columns[i][1])))
     head = ["Agents", "Metric", "", *(c[0] for c in columns)]
     rows, notes = [], []
     for sc in scenarios:
-        ours = [pick(records, m, sc, kept) for _, m, kept in columns]
+        common = _common_seeds(records, sc, columns) if matched else None
+        ours = [pick(records, m, sc, kept, common if kept else None) for _, m, kept in columns]
         theirs = [paper(sc, i) for i in range(len(columns))]
         for i, (key, label) in enumerate((("steps", "Steps ↓"), ("sr", "SR ↑"), ("cr", "CR ↓"))):
             rows.append([sc if i == 0 else "", label, "ours",
@@ -261,13 +274,14 @@ _ABLATION_TITLES = {"ab": "Ablations, N = 20", "groupsize": "Group size N_g, N =
 
 def table_ablation(name: str, records, latex=False) -> Table:
     """One of the ablation tables ("ab", "groupsize", "globalsteps"): the variants' kept
-    training seeds (``results/training/FOLDER/mpe-20-seedK.pt``) on mpe-20, beside the paper's."""
+    training seeds (``results/training/FOLDER/mpe-20-seedK.pt``) on mpe-20, beside the paper's,
+    each column pooling the training seeds that every column with records has."""
     columns = ABLATION_TABLES[name]
 
     def paper(sc, i):
         key = columns[i][1] if name == "ab" else int(columns[i][0])
         return PAPER[name].get((sc, key))
-    return _metric_table(name, _ABLATION_TITLES[name], ("mpe-20",), columns, records, latex, paper)
+    return _metric_table(name, _ABLATION_TITLES[name], ("mpe-20",), columns, records, latex, paper, matched=True)
 
 
 def _steps(rec):
@@ -286,9 +300,9 @@ def table_ablation_claims(records, latex=False) -> Table:
     with) needs than the variant, relative to the variant — (35.91 − 24.41) / 35.91 = 32.02 %
     for "MASP w. RG". "fails" is SR below 0.5; "within 5 %" holds when the variant's Steps lie
     within 5 % of the base setting's, and shows the signed difference relative to the base."""
-    def get(table, i):
+    def get(table, i):  # the training seeds the table's columns share, as in its table
         _, method, kept = ABLATION_TABLES[table][i]
-        return pick(records, method, "mpe-20", kept)
+        return pick(records, method, "mpe-20", kept, _common_seeds(records, "mpe-20", ABLATION_TABLES[table]))
 
     def paper(table, i):
         _, method, _ = ABLATION_TABLES[table][i]
