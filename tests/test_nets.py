@@ -75,6 +75,30 @@ def test_cross_encoder_scores_are_a_distribution_and_follow_goal_order():
     assert not torch.allclose(ce(ya, yt, d2)[0, 0, 1], ce(ya, yt, d)[0, 0, 1])
 
 
+def test_cross_encoder_chunked_head_matches_eq4_literally_in_value_and_gradients(monkeypatch):
+    """The chunked score head (hand-written backward) against autograd through the concatenation."""
+    from masp_lite.nets import encoders
+    monkeypatch.setattr(encoders, "CHUNK_ROWS", 16)       # several chunks
+    torch.manual_seed(5)
+    ce = CrossEncoder(6, distance_channels=2).double()
+    ya = torch.randn(3, 4, 6, dtype=torch.float64, requires_grad=True)
+    yt = torch.randn(3, 5, 6, dtype=torch.float64, requires_grad=True)
+    d = torch.rand(3, 4, 5, 2, dtype=torch.float64)
+    mask = torch.rand(3, 5) > 0.3
+    fast = ce(ya, yt, d, mask)
+    q = ce.query(ya).unsqueeze(2).expand(3, 4, 5, 6)
+    k = ce.key(yt).unsqueeze(1).expand(3, 4, 5, 6)
+    literal = ce.score(torch.cat([q, k, d], -1)).squeeze(-1).masked_fill(~mask.unsqueeze(1), float("-inf"))
+    torch.testing.assert_close(fast, literal)
+    g = torch.randn(3, 4, 5, dtype=torch.float64)
+    inputs = [ya, yt, *ce.parameters()]
+    mine = torch.autograd.grad(fast.masked_fill(~mask.unsqueeze(1), 0.0), inputs, g)
+    theirs = torch.autograd.grad(literal.masked_fill(~mask.unsqueeze(1), 0.0), inputs, g)
+    for a, c in zip(mine, theirs):
+        torch.testing.assert_close(a, c)
+    assert torch.autograd.gradcheck(lambda a, b: ce(a, b, d), (ya, yt))
+
+
 @pytest.mark.parametrize("n,ng", [(2, 3), (3, 3), (4, 3), (5, 3), (20, 3), (50, 3), (7, 4), (6, 2)])
 def test_group_division_follows_the_paper(n, ng):
     perm = random_permutation(3, n, torch.Generator().manual_seed(n))
@@ -217,18 +241,32 @@ def test_policy_is_seeded_and_respects_dead_agents(tmp_path):
     assert torch.equal(runs[0], runs[1])
 
 
-def test_linear_relu_matches_torch_in_value_and_gradients():
-    from masp_lite.nets.fusion import linear_relu
+@pytest.mark.parametrize("agents, dead", [(7, False), (7, True), (2, False), (1, False)])
+def test_one_layer_fusion_matches_the_general_path_in_value_and_gradients(agents, dead, monkeypatch):
+    """The chunked one-layer fusion (hand-written backward) against autograd through gcn_layer."""
+    from masp_lite.nets import fusion
+    monkeypatch.setattr(fusion, "CHUNK_ROWS", 20)  # several chunks even for these small worlds
     torch.manual_seed(3)
-    x = torch.randn(4, 7, 6, dtype=torch.float64, requires_grad=True)
-    w = torch.randn(5, 6, dtype=torch.float64, requires_grad=True)
-    b = torch.randn(5, dtype=torch.float64, requires_grad=True)
-    out = linear_relu(x, w, b)
-    ref = torch.relu(torch.nn.functional.linear(x, w, b))
-    torch.testing.assert_close(out, ref)
-    g = torch.randn_like(ref)
-    mine = torch.autograd.grad(out, (x, w, b), g)
-    theirs = torch.autograd.grad(ref, (x, w, b), g)
+    gif = GroupInformationFusion(6, 5).double()
+    pos, vel = torch.randn(3, agents, 2, dtype=torch.float64), torch.randn(3, agents, 2, dtype=torch.float64)
+    pair = pair_features(pos, vel)
+    groups = group_division(random_permutation(3, agents, torch.Generator().manual_seed(1)), 3)
+    alive = torch.ones(3, agents, dtype=torch.bool)
+    if dead:
+        alive[1, [1, 3, 4]] = False
+        alive[2, 1:] = False                                   # agent 0 alone: every group empty
+    g = torch.randn(3, agents, 5, dtype=torch.float64)
+    fast = gif(pair, groups, alive)
+    mine = torch.autograd.grad(fast, list(gif.parameters()), g)
+    general = gif(pair.clone().requires_grad_(), groups, alive)  # a pair gradient takes the general path
+    theirs = torch.autograd.grad(general, list(gif.parameters()), g)
+    torch.testing.assert_close(fast, general)
     for a, c in zip(mine, theirs):
         torch.testing.assert_close(a, c)
-    assert torch.autograd.gradcheck(linear_relu, (x, w, b))
+    others = None if not dead else torch.gather(alive.unsqueeze(1).expand(3, agents, agents), 2,
+                                                groups.flatten(2)).view(groups.shape)[..., 1:]
+    B, N, G, n = groups.shape
+    weight = torch.full((B, N, G), 1.0 / G, dtype=torch.float64)
+    assert torch.autograd.gradcheck(
+        lambda *p: fusion._OneLayerFusion.apply(pair, groups, others, weight, *p),
+        (gif.embed[0].weight, gif.embed[0].bias, gif.gcn[0].weight, gif.gcn[0].bias))

@@ -13,8 +13,10 @@ Per environment step ``t`` of a rollout (all worlds and agents at once, under
    drawn agent by agent in a random order (stored with the picks,
    :mod:`masp_lite.nets.decoding`); its reward ``R_GM``
    (eq. 1) is computed at once against the Hungarian assignment;
-2. the executor samples an action per agent from its goal, a fresh random group order
-   (stored, so the update rebuilds the same groups), and the world steps;
+2. the executor samples an action per agent from its goal and a fresh random group order,
+   and the world steps; its inputs (pair features, the groups, goal and obstacle features,
+   :meth:`~masp_lite.nets.masp.MASPNets.cae_inputs`) are stored with the step, so the
+   update sees the same groups and does not recompute them every epoch;
 3. ``R_CAE`` (eq. 5) is computed after the step.
 
 A rollout is one full episode (horizon steps), so both levels bootstrap from 0 at the
@@ -117,7 +119,8 @@ class MASPTrainer:
             r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
                                 w.scenario.world_size, cfg.reward.bonus_coef, cfg.reward.distance_coef,
                                 cfg.reward.collision_coef)
-            cae.add(**snap, goals=goals, perm=perm, actions=actions, logp=logp, values=v, rewards=r, mask=alive)
+            cae.add(**snap, pair=inputs[0], groups=inputs[1], goal_f=inputs[3], obstacle_f=inputs[4],
+                    actions=actions, logp=logp, values=v, rewards=r, mask=alive)
             cov.append(info["covered"].all(-1))
             col.append(info["collisions"])
         self.env_steps += self.horizon * B
@@ -146,7 +149,7 @@ class MASPTrainer:
 
     def _cae_eval(self, mb):
         obs = {k: mb[k] for k in OBS_KEYS}
-        inputs = self.nets.cae_inputs(obs, mb["goals"], mb["perm"])
+        inputs = (mb["pair"], mb["groups"], mb["alive"], mb["goal_f"], mb["obstacle_f"])
         return self.nets.cae_forward(inputs, obs, self.horizon)
 
     def iteration(self) -> dict[str, float]:

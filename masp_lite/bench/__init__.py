@@ -10,6 +10,7 @@ in the same run (ratios, never absolute timings in tests):
 ``decide``   decision time of the methods
 ``planners`` the classical planners' step time
 ``drones``   MuJoCo drone world throughput
+``train``    training env steps/s per method, and MASP's on plain autograd
 ===========  ==============================================================
 
 Without a target, every target present in this version runs with its defaults.
@@ -28,6 +29,7 @@ TARGETS = {
     "decide": "decision time per step of the methods",
     "planners": "step time of the classical planners",
     "drones": "MuJoCo drone world throughput",
+    "train": "training env steps/s per method vs plain autograd",
 }
 
 

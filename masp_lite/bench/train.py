@@ -1,0 +1,91 @@
+"""``python -m masp_lite bench train``: training throughput in environment steps per second.
+
+One environment step is one step of one world (all its agents), the unit of every training
+budget in the manifests. For each scenario (``mpe-20`` and ``mpe-50`` by default) and each
+trainable method, the trainer is built with the from-scratch recipe
+(:data:`masp_lite.config.FROM_SCRATCH`, ``--worlds`` worlds instead of its 32), one iteration
+(an episode in every world, then PPO on both levels) warms up, and ``--iterations``
+iterations are timed with ``time.perf_counter``, with ``--threads`` torch threads.
+
+The reference, measured in the same run: MASP with the chunked kernels off
+(:func:`masp_lite.nets.encoders.plain_autograd`: the Group Information Fusion and the
+Cross-Encoder's score head from plain torch ops, differentiated by autograd). The ratio
+"x plain" is what the kernels buy; "x masp" compares each method with MASP. Other work on
+the machine slows every row alike, so the ratios hold better than the absolute figures;
+the output prints the load average.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import time
+
+import torch
+
+from ..config import FROM_SCRATCH, TrainConfig
+from ..nets.encoders import plain_autograd
+
+__all__ = ["add_arguments", "run", "throughput", "METHODS"]
+
+METHODS = {"masp": {}}
+"""Trainable method -> the training settings it adds to the recipe."""
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--scenarios", nargs="+", default=["mpe-20", "mpe-50"], help="default: mpe-20 mpe-50")
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), help=f"default: {' '.join(METHODS)}")
+    parser.add_argument("--worlds", type=int, default=16, help="worlds per iteration (default 16)")
+    parser.add_argument("--iterations", type=int, default=1, help="timed iterations per row (default 1)")
+    parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    parser.add_argument("--no-reference", action="store_true", help="skip the plain-autograd MASP row")
+    parser.add_argument("--json", default=None, help="also write the numbers to this JSON file")
+
+
+def throughput(scenario: str, settings: dict, worlds: int = 16, iterations: int = 1, plain: bool = False) -> float:
+    """Environment steps per second of training with ``settings`` added to the recipe."""
+    from ..algos.masp_trainer import MASPTrainer
+    cfg = TrainConfig.from_flat({**FROM_SCRATCH, **settings, "num_envs": worlds})
+    with plain_autograd() if plain else contextlib.nullcontext():
+        trainer = MASPTrainer(scenario, cfg, seed=0)
+        trainer.iteration()  # warm-up
+        start, t0 = trainer.env_steps, time.perf_counter()
+        for _ in range(iterations):
+            trainer.iteration()
+        return (trainer.env_steps - start) / (time.perf_counter() - t0)
+
+
+def run(args) -> int:
+    for name in ("worlds", "iterations", "threads"):
+        if getattr(args, name) < 1:
+            raise ValueError(f"--{name}: expected a positive int, got {getattr(args, name)}")
+    unknown = [m for m in args.methods if m not in METHODS]
+    if unknown:
+        raise ValueError(f"--methods: unknown {unknown}; expected some of {list(METHODS)}")
+    from ..envs import get_scenario
+    for sc in args.scenarios:
+        if get_scenario(sc).kind != "particle":
+            raise ValueError(f"--scenarios: {sc!r} is not a particle scenario; training runs on mpe-*")
+    torch.set_num_threads(args.threads)
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"training throughput, env steps/s ({args.worlds} worlds, {args.threads} threads, "
+          f"{args.iterations} timed iteration(s) after one warm-up)")
+    res = {"worlds": args.worlds, "threads": args.threads, "iterations": args.iterations,
+           "load_average_1min": load, "env_steps_per_s": {}}
+    for sc in args.scenarios:
+        rows = {m: throughput(sc, METHODS[m], args.worlds, args.iterations) for m in args.methods}
+        if not args.no_reference:
+            rows["masp (plain autograd)"] = throughput(sc, METHODS["masp"], args.worlds, args.iterations, plain=True)
+        res["env_steps_per_s"][sc] = rows
+        masp = rows.get("masp")
+        plain = rows.get("masp (plain autograd)")
+        print(f"{sc}:")
+        for name, sps in rows.items():
+            extra = [f"x masp {sps / masp:.2f}" if masp and name != "masp" else "",
+                     f"x plain {sps / plain:.2f}" if plain and name == "masp" else ""]
+            print(f"  {name:<24} {sps:8.1f}   {'  '.join(e for e in extra if e)}")
+    print(f"(1-minute load average at start: {load:.1f}; other work on the machine slows every row)")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(res, f, indent=2)
+    return 0
