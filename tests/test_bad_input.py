@@ -259,3 +259,17 @@ def test_wrong_scenario_hint_has_the_command_line_and_python_spellings(run_dir, 
         load_weights(run_dir / "weights.pt", scenario="mpe-20")
     assert main(["evaluate", "--method", "masp", "--scenario", "mpe-20", "--episodes", "1", "--seeds", "0",
                  "--set", "horizon=2", "--checkpoint", str(run_dir / "weights.pt"), "--set", "any_scenario=true"]) == 0
+
+
+def test_bench_train_smoke_and_bad_options(tmp_path, capsys):
+    """Output format only (tiny budget, no timing assertions); bad options are one clear error."""
+    out = tmp_path / "train.json"
+    assert main(["bench", "train", "--scenarios", "mpe-5", "--worlds", "2", "--threads", "1", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "masp (plain autograd)" in text and "x plain" in text
+    rows = json.loads(out.read_text())["env_steps_per_s"]["mpe-5"]
+    assert set(rows) == {"masp", "masp (plain autograd)"} and all(v > 0 for v in rows.values())
+    assert main(["bench", "train", "--methods", "nope"]) == 2
+    assert "unknown ['nope']" in capsys.readouterr().err
+    assert main(["bench", "train", "--scenarios", "drone-5"]) == 2
+    assert "not a particle scenario" in capsys.readouterr().err
