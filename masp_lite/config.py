@@ -28,7 +28,7 @@ __all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig",
 
 GM_REFERENCES = ("distance", "squared", "bottleneck")
 """The settings of :attr:`RewardConfig.gm_reference`."""
-GOAL_MATCHERS, EXECUTORS = ("graph", "mlp", "random"), ("graph", "mlp")
+GOAL_MATCHERS, EXECUTORS = ("graph", "mlp", "random", "hungarian"), ("graph", "mlp", "nearest", "subgraph")
 """The settings of :attr:`NetConfig.goal_matcher` and :attr:`NetConfig.executor`."""
 
 
@@ -59,18 +59,22 @@ class NetConfig:
     global_step: int = 3
     """Environment steps per Goal Matcher decision (3 in the paper)."""
     goal_matcher: str = "graph"
-    """The high level (the paper's ablations): ``graph``, MASP's Goal Matcher; ``mlp``, "GM w.o.
-    Graph" (:class:`~masp_lite.nets.ablations.GoalMatcherMLP`); ``random``, "MASP w. RG": distinct
-    random goals, no Goal Matcher trained."""
+    """The high level (the paper's ablations and baselines): ``graph``, MASP's Goal Matcher;
+    ``mlp``, "GM w.o. Graph" (:class:`~masp_lite.nets.ablations.GoalMatcherMLP`); ``random``,
+    "MASP w. RG": distinct random goals, no Goal Matcher trained; ``hungarian``, the Hungarian
+    assignment every global step, nothing trained (``h-mappo``)."""
     executor: str = "graph"
     """The executor's view of the other agents: ``graph``, the Group Information Fusion;
-    ``mlp``, "CAE w.o. Graph" (:class:`~masp_lite.nets.ablations.FusionMLP`)."""
+    ``mlp``, "CAE w.o. Graph" (:class:`~masp_lite.nets.ablations.FusionMLP`); ``nearest`` and
+    ``subgraph``, the baselines' views (:mod:`masp_lite.nets.baselines`)."""
+    neighbours_seen: int = 3
+    """Other agents the ``nearest`` and ``subgraph`` executors see."""
     team_size: int = 0
     """Agents an ``mlp`` variant is built for (its input size is fixed); 0 for the graph networks,
     which serve any team size. Training sets it to the scenario's team size."""
 
     def __post_init__(self):
-        for name in ("width", "gcn_layers", "obstacles_seen", "global_step"):
+        for name in ("width", "gcn_layers", "obstacles_seen", "global_step", "neighbours_seen"):
             _check(self, name, 1, integer=True)
         _check(self, "group_size", 2, integer=True)
         _check(self, "team_size", 0, integer=True)

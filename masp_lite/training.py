@@ -46,16 +46,43 @@ from .algos.masp_trainer import MASPTrainer
 from .config import TrainConfig, field_types, parse_sets
 from .envs import OVERRIDES, Scenario, make
 from .evaluation import collision_rate, rollout, steps, success_rate
-from .policies.masp import MASPPolicy
+from .policies.masp import VARIANTS, MASPPolicy
 from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256, trained_world
 
-__all__ = ["train", "parse_config", "evaluate_nets", "checkpoint_iterations", "ship_run", "ship_zero_shot",
+__all__ = ["train", "parse_config", "METHOD_SETTINGS", "method_config", "evaluate_nets", "checkpoint_iterations", "ship_run", "ship_zero_shot",
            "CSV_FIELDS", "EVAL_SEED"]
 
 CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward",
               "gm_policy_loss", "gm_value_loss", "gm_entropy", "cae_policy_loss", "cae_value_loss", "cae_entropy",
               "eval_sr", "eval_steps", "eval_cr"]
 EVAL_SEED = 12_345
+
+
+METHOD_SETTINGS = {m: dict(v) for m, v in VARIANTS.items()}
+"""Trainable method -> the training settings that make it that method. ``mage-x`` also sets
+``global_step`` past every horizon: its goals are assigned once, when the episode starts."""
+METHOD_SETTINGS["mage-x"]["global_step"] = 1000
+
+
+def method_config(method: str, sets=(), scenario: str | None = None) -> tuple[TrainConfig, dict]:
+    """The configuration of ``train --method METHOD --set ...``: the method's settings, then ``sets``.
+
+    One clear error for a method that is not trained here, a ``--set`` that would make it
+    another method, or a scenario the trainer does not run (drones).
+    """
+    if method not in METHOD_SETTINGS:
+        raise ValueError(f"train: {method!r} is not a method trained here; expected one of {sorted(METHOD_SETTINGS)}")
+    if scenario is not None:
+        from .envs import get_scenario
+        if get_scenario(scenario).kind != "particle":
+            raise ValueError(f"train --method {method}: expected a particle scenario (mpe-*), got {scenario!r}")
+    own = METHOD_SETTINGS[method]
+    cfg, overrides = parse_config([f"{k}={v}" for k, v in own.items()] + list(sets))
+    for k in VARIANTS[method]:
+        if getattr(cfg.net, k) != own[k]:
+            raise ValueError(f"train --method {method}: {k} is {own[k]!r} for this method; --set {k}="
+                             f"{getattr(cfg.net, k)} makes another one (see masp_lite.policies.masp.VARIANTS)")
+    return cfg, overrides
 
 
 def parse_config(sets) -> tuple[TrainConfig, dict]:
@@ -126,8 +153,10 @@ def checkpoint_iterations(out) -> int | None:
 
 def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = False, init=None,
           overrides: dict | None = None, progress: bool = True, command: str | None = None,
-          on_iteration=None) -> dict:
-    """Train MASP; returns the manifest. ``on_iteration(trainer)`` runs after every iteration."""
+          on_iteration=None, method: str = "masp") -> dict:
+    """Train ``method`` (``cfg`` from :func:`method_config`); returns the manifest.
+
+    ``on_iteration(trainer)`` runs after every iteration."""
     out = Path(out)
     state_path = out / "state.pt"
     if resume and not state_path.exists():
@@ -136,7 +165,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         raise ValueError(f"{state_path} exists; pass --resume to continue it or choose another --out")
     trainer = MASPTrainer(scenario, cfg, seed=seed, overrides=overrides)
     wall_before, rows, started = 0.0, [], datetime.now(timezone.utc).isoformat(timespec="seconds")
-    default_command = f"python -m masp_lite train --method masp --scenario {scenario} --seed {seed}"
+    default_command = f"python -m masp_lite train --method {method} --scenario {scenario} --seed {seed}"
     first_command = None
     if resume:
         state = _load_state(state_path)
@@ -176,7 +205,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=cfg.run.updates, initial=trainer.iterations, unit="it", desc=f"masp on {sc}")
+        bar = tqdm(total=cfg.run.updates, initial=trainer.iterations, unit="it", desc=f"{method} on {sc}")
     try:
         while trainer.iterations < cfg.run.updates:
             row = trainer.iteration()
@@ -197,7 +226,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
             bar.close()
     final = evaluate_nets(trainer.nets, sc, overrides, cfg.run.eval_episodes)
     manifest = {
-        "method": "masp", "scenario": sc, "world": trainer.world.scenario.world, "overrides": dict(overrides or {}),
+        "method": method, "scenario": sc, "world": trainer.world.scenario.world, "overrides": dict(overrides or {}),
         "seed": int(seed),
         "command": first_command or command or default_command,
         "last_command": command or default_command,
@@ -216,7 +245,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
 
 _RUN_INFO = ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s", "started", "finished", "machine",
              "config", "final_eval")
-_RUN_EXTRA = ("last_command", "overrides", "world")  # absent from older manifests (world: since the paper's world)
+_RUN_EXTRA = ("last_command", "overrides", "world", "method")  # absent from older manifests
 
 
 def _run_info(m: dict) -> dict:

@@ -36,7 +36,7 @@ import torch
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-__all__ = ["hungarian", "hungarian_random_subset", "bottleneck", "sequential", "assignment_cost", "distance_matrix",
+__all__ = ["hungarian", "hungarian_goals", "hungarian_random_subset", "bottleneck", "sequential", "assignment_cost", "distance_matrix",
            "check_power"]
 
 
@@ -122,6 +122,17 @@ def hungarian(agent_pos, goal_pos, agent_mask=None, goal_mask=None, power: float
     """
     a, g, am, gm, device = _check(agent_pos, goal_pos, agent_mask, goal_mask)
     return torch.from_numpy(_solve(a, g, am, gm, check_power(power))).to(device)
+
+
+def hungarian_goals(agent_pos, goal_pos, agent_mask=None, goal_mask=None) -> torch.Tensor:
+    """:func:`hungarian`, with every agent it leaves without a goal sent to its nearest one.
+
+    The goals of ``h-mappo`` and of ``masp``'s ``decode="hungarian"`` diagnostic: (B, N)
+    goal indices, none ``-1`` (a shrinking team can have more agents than open goals).
+    """
+    goals = hungarian(agent_pos, goal_pos, agent_mask, goal_mask)
+    nearest = torch.cdist(torch.as_tensor(agent_pos), torch.as_tensor(goal_pos)).argmin(-1).to(goals.device)
+    return torch.where(goals >= 0, goals, nearest)
 
 
 def hungarian_random_subset(agent_pos, goal_pos, agent_mask=None, goal_mask=None,

@@ -25,10 +25,13 @@ steps for the Goal Matcher), then :func:`~masp_lite.algos.mappo.ppo_update` trai
 level (only the Goal Matcher when ``train_executor`` is off: a fine-tuning stage that
 leaves the executor, its critic and its value normalisation untouched).
 
-The ablations are settings of the same trainer (:class:`~masp_lite.config.NetConfig`):
-``goal_matcher="random"`` ("MASP w. RG") draws distinct random goals when an episode starts
-(and again when the team changes) and trains only the executor; the ``mlp`` variants are
-built for the scenario's team size (``team_size`` is set from it).
+The ablations and the goal-based RL baselines are settings of the same trainer
+(:class:`~masp_lite.config.NetConfig`): ``goal_matcher="random"`` ("MASP w. RG") draws
+distinct random goals when an episode starts (and again when the team changes) and trains
+only the executor; ``goal_matcher="hungarian"`` (``h-mappo``) takes the Hungarian assignment
+every global step and trains only the executor; the ``mlp`` variants are built for the
+scenario's team size (``team_size`` is set from it); ``global_step`` longer than the horizon
+(``mage-x``) assigns goals once, at the start.
 """
 from __future__ import annotations
 
@@ -40,6 +43,7 @@ from ..config import TrainConfig
 from ..envs import make
 from ..nets.decoding import conditional_logits, random_goals, sequential_sample
 from ..nets.masp import MASPNets
+from .assignment import hungarian_goals
 from .mappo import RolloutStorage, ValueNorm, gae, ppo_update
 from .rewards import executor_reward, goal_matcher_reward
 
@@ -73,6 +77,8 @@ class MASPTrainer:
             cfg = self.cfg = dataclasses.replace(cfg, net=dataclasses.replace(cfg.net,
                                                                               team_size=self.world.num_agents))
         self.random_goals = cfg.net.goal_matcher == "random"
+        self.hungarian_goals = cfg.net.goal_matcher == "hungarian"
+        self.gm_trained = not (self.random_goals or self.hungarian_goals)
         torch.manual_seed(self.seed)  # network initialisation
         self.nets = MASPNets(cfg.net)
         n = self.nets
@@ -100,6 +106,10 @@ class MASPTrainer:
                     goal_mask = ~obs["reached"] if w.scenario.varying else None
                     goals, drawn_for = random_goals(obs["alive"], obs["landmark_pos"].shape[1], g, goal_mask), \
                         obs["alive"].clone()
+            elif self.hungarian_goals:
+                if t % cfg.net.global_step == 0:  # h-mappo: the Hungarian assignment every global step
+                    goal_mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True) if w.scenario.varying else None
+                    goals = hungarian_goals(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask)
             elif t % cfg.net.global_step == 0:
                 logits = n.gm_logits(obs, self.scale)
                 goals, logp, rank = sequential_sample(logits, obs["alive"], g)
@@ -128,7 +138,7 @@ class MASPTrainer:
         first = torch.where(solved, torch.arange(self.horizon + 1), self.horizon).min(1).values
         stats = {"sr": float(obs["covered"].float().mean()), "steps": float(first.float().mean()),
                  "cr": float(torch.stack(col, 1).float().mean())}
-        gm_data = None if self.random_goals else self._advantages(gm.stacked(), self.gm_norm, cfg.ppo.gm_gamma)
+        gm_data = self._advantages(gm.stacked(), self.gm_norm, cfg.ppo.gm_gamma) if self.gm_trained else None
         return gm_data, \
             self._advantages(cae.stacked(), self.cae_norm, cfg.ppo.gamma, update=cfg.run.train_executor), stats
 
@@ -158,7 +168,7 @@ class MASPTrainer:
         r_cae = float(cae_data.pop("reward_mean")[cae_data["mask"]].mean())
         n, cfg = self.nets, self.cfg
         nothing = {"policy_loss": float("nan"), "value_loss": float("nan"), "entropy": float("nan")}
-        if gm_data is None:  # random goals: no Goal Matcher to train
+        if gm_data is None:  # random or Hungarian goals: no Goal Matcher to train
             r_gm, s_gm = float("nan"), dict(nothing)
         else:
             r_gm = float(gm_data.pop("reward_mean")[gm_data["mask"]].mean())

@@ -1,6 +1,8 @@
 """``python -m masp_lite train --method masp --scenario mpe-20 [--out DIR] [--resume] [--seed S] [--set k=v]``.
 
-Trains MASP with :func:`masp_lite.training.train` (run folder, exact resume, manifest).
+Trains MASP, an ablation or a goal-based RL baseline (``--method``, settings from
+:func:`masp_lite.training.method_config`) with :func:`masp_lite.training.train` (run folder,
+exact resume, manifest).
 ``--set`` takes any training setting (:class:`masp_lite.config.TrainConfig`'s fields, e.g.
 ``--set updates=300 --set lr=2e-4``) or scenario override (``--set num_obstacles=40``),
 parsed by :func:`masp_lite.config.parse_sets` as in every command. ``--init PATH`` starts
@@ -19,20 +21,22 @@ import sys
 
 import torch
 
-from ..training import checkpoint_iterations, parse_config, train
+from ..training import checkpoint_iterations, method_config, train
 
 __all__ = ["add_arguments", "run", "resume_command", "EXAMPLES"]
 
 EXAMPLES = [
     "train --method masp --scenario mpe-20 --out runs/mpe-20 --seed 0 --set lr=2e-4",
     "train --method masp --scenario mpe-20 --out runs/mpe-20 --resume   # continue it after Ctrl-C",
+    "train --method h-mappo --scenario mpe-5 --seed 0   # an RL baseline, same trainer",
 ]
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--method", default="masp", help="learned method to train (only 'masp' here)")
+    parser.add_argument("--method", default="masp", help="learned method to train: masp, an ablation (masp-rg, gm-mlp, "
+                        "cae-mlp) or a baseline (h-mappo, htamp, mage-x); default masp")
     parser.add_argument("--scenario", required=True, help="particle scenario, e.g. mpe-20")
-    parser.add_argument("--out", default=None, help="run folder (default runs/masp-SCENARIO-seedS)")
+    parser.add_argument("--out", default=None, help="run folder (default runs/METHOD-SCENARIO-seedS)")
     parser.add_argument("--resume", action="store_true", help="continue the run saved in --out")
     parser.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
@@ -71,23 +75,21 @@ def _interrupted(args, out: str, cfg) -> str:
 
 
 def run(args) -> int:
-    if args.method != "masp":
-        raise ValueError(f"train: unknown method {args.method!r}; expected 'masp'")
     if args.threads < 1:
         raise ValueError(f"--threads: expected a positive int, got {args.threads}")
+    cfg, overrides = method_config(args.method, args.sets, args.scenario)
     torch.set_num_threads(args.threads)
-    cfg, overrides = parse_config(args.sets)
-    out = args.out or f"runs/masp-{args.scenario}-seed{args.seed}"
+    out = args.out or f"runs/{args.method}-{args.scenario}-seed{args.seed}"
     command = "python -m masp_lite train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "train" else None
     try:
         m = train(args.scenario, cfg, out, seed=args.seed, resume=args.resume, init=args.init,
-                  overrides=overrides, progress=not args.quiet, command=command)
+                  overrides=overrides, progress=not args.quiet, command=command, method=args.method)
     except KeyboardInterrupt:  # Ctrl-C: no traceback; say where the run stands and how to go on
         print(f"\n{_interrupted(args, out, cfg)}", file=sys.stderr)
         return 130
     ev = m["final_eval"]
-    print(f"masp on {m['scenario']}, final evaluation (deterministic, {ev['episodes']} episodes): "
+    print(f"{args.method} on {m['scenario']}, final evaluation (deterministic, {ev['episodes']} episodes): "
           f"SR {ev['sr']:.3f}  Steps {ev['steps']:.2f}  CR {ev['cr']:.3f}  "
           f"({m['env_steps']} env steps, {m['wall_clock_s']:.0f} s) -> {out}")
     return 0

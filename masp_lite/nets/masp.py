@@ -25,7 +25,8 @@
 
 All parameters are shared by the agents and every weight acts per node, pair or group,
 so the networks run for any team size (the ablations' MLPs, :mod:`masp_lite.nets.ablations`,
-chosen by :class:`~masp_lite.config.NetConfig`, are the exception). Executor inputs are in metres (MPE's dynamics do
+chosen by :class:`~masp_lite.config.NetConfig`, are the exception). The RL baselines' executors
+(:mod:`masp_lite.nets.baselines`) replace only the fusion. Executor inputs are in metres (MPE's dynamics do
 not scale with the map); relative vectors are clipped at ``SENSE`` = 1 m for neighbours
 and obstacles (collisions happen below 0.2 m).
 """
@@ -39,6 +40,7 @@ from torch import nn
 from ..config import NetConfig
 from ..envs.particle import NUM_ACTIONS
 from .ablations import FusionMLP, GoalMatcherMLP
+from .baselines import AttentionSubgraph, NearestMLP
 from .encoders import CrossEncoder, SelfEncoder, mlp
 from .fusion import GroupInformationFusion, group_division
 
@@ -243,10 +245,12 @@ class MASPNets(nn.Module):
         if c.fixed_size and c.team_size < 2:
             raise ValueError("MASPNets: an mlp variant needs team_size (the agents it is built for), got "
                              f"{c.team_size}")
-        # "random" keeps a (never trained, never used) Goal Matcher so that every weights file has one layout
+        # "random" and "hungarian" keep a (never trained, never used) Goal Matcher: every weights file has one layout
         self.gm = GoalMatcherMLP(c.width, c.team_size) if c.goal_matcher == "mlp" else GoalMatcher(c.width)
         self.gm_critic = GoalMatcherCritic(c.width)
-        fusion = FusionMLP(PAIR_FEATURES, c.width, c.team_size) if c.executor == "mlp" else None
+        fusion = {"graph": lambda: None, "mlp": lambda: FusionMLP(PAIR_FEATURES, c.width, c.team_size),
+                  "nearest": lambda: NearestMLP(PAIR_FEATURES, c.width, c.neighbours_seen),
+                  "subgraph": lambda: AttentionSubgraph(PAIR_FEATURES, c.width, c.neighbours_seen)}[c.executor]()
         self.cae = CoordinatedActionExecutor(c.width, c.gcn_layers, c.obstacles_seen, fusion)
         self.cae_critic = ExecutorCritic(c.width)
 

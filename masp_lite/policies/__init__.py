@@ -11,8 +11,8 @@ called as ``factory(world, **options)``; factories are named by ``"module:attrib
 strings and imported on first use, so a method's dependencies (MuJoCo, scipy's spatial
 code, the networks) load only when it is asked for. The methods live in this package:
 :mod:`.reference` (``random``, ``h-greedy``, ``h-capt``, ``h-bottleneck``), :mod:`.planners` (the "(H)" planners),
-:mod:`.drones` (the drone version of ``h-greedy``) and :mod:`.masp` (``masp`` and its ablations ``masp-rg``,
-``gm-mlp``, ``cae-mlp``).
+:mod:`.drones` (the drone version of ``h-greedy``) and :mod:`.masp` (``masp``, its ablations ``masp-rg``,
+``gm-mlp``, ``cae-mlp``, and the goal-based RL baselines ``h-mappo``, ``htamp``, ``mage-x``).
 """
 from __future__ import annotations
 
@@ -51,6 +51,9 @@ METHODS: dict[str, str] = {
     "masp-rg": "masp_lite.policies.masp:masp_rg",
     "gm-mlp": "masp_lite.policies.masp:gm_mlp",
     "cae-mlp": "masp_lite.policies.masp:cae_mlp",
+    "h-mappo": "masp_lite.policies.masp:h_mappo",
+    "htamp": "masp_lite.policies.masp:htamp",
+    "mage-x": "masp_lite.policies.masp:mage_x",
 }
 
 

@@ -6,27 +6,38 @@ otherwise). Every ``global_step`` environment steps the Goal Matcher's scores be
 goal per agent (:mod:`masp_lite.nets.decoding`); every step the executor acts towards it
 with a fresh random group division, as in training.
 
-The paper's ablations are the same policy around weights of another
-:class:`~masp_lite.config.NetConfig` (:data:`ABLATIONS`): ``masp-rg`` (random goals),
-``gm-mlp`` and ``cae-mlp`` (an MLP instead of a graph, for one team size). Their weights
-are the kept training seeds ``results/training/VARIANT/mpe-20-seedK.pt`` of a source
-checkout (seed 0 unless ``checkpoint`` says otherwise); ``masp`` refuses them, so a record
-never names the wrong method.
+The paper's ablations and its goal-based RL baselines are the same policy around weights
+of another :class:`~masp_lite.config.NetConfig` (:data:`VARIANTS`): ``masp-rg`` (random
+goals), ``gm-mlp`` and ``cae-mlp`` (an MLP instead of a graph, for one team size);
+``h-mappo`` (Hungarian goals, an executor over the nearest agents), ``htamp`` (MLPs at both
+levels, flat observations) and ``mage-x`` (goals once, at the start, by an attention graph
+network; an executor on an attention-selected subgraph). Their weights are the kept training
+seeds ``results/training/METHOD/PRESET-seedK.pt`` of a source checkout (seed 0 unless
+``checkpoint`` says otherwise, :func:`kept_weights`); each method refuses another's weights,
+so a record never names the wrong method.
 """
 from __future__ import annotations
 
 import torch
 
-from ..algos.assignment import hungarian
+from ..algos.assignment import hungarian_goals
 from ..nets.decoding import DECODERS, joint_argmax, random_goals, sequential_sample
 from ..nets.masp import MASPNets
 from ..weights import KEPT_DIR, load_weights
 
-__all__ = ["MASPPolicy", "ABLATIONS", "masp_rg", "gm_mlp", "cae_mlp"]
+__all__ = ["MASPPolicy", "ABLATIONS", "BASELINES", "VARIANTS", "kept_weights", "masp_rg", "gm_mlp", "cae_mlp",
+           "h_mappo", "htamp", "mage_x"]
 
 #: The paper's ablations: method name -> the NetConfig settings its weights must have.
-ABLATIONS = {"masp-rg": {"goal_matcher": "random"}, "gm-mlp": {"goal_matcher": "mlp"},
-             "cae-mlp": {"executor": "mlp"}}
+ABLATIONS = {"masp-rg": {"goal_matcher": "random", "executor": "graph"},
+             "gm-mlp": {"goal_matcher": "mlp", "executor": "graph"},
+             "cae-mlp": {"goal_matcher": "graph", "executor": "mlp"}}
+#: The goal-based RL baselines (section "Baselines"; :mod:`masp_lite.nets.baselines`), likewise.
+BASELINES = {"h-mappo": {"goal_matcher": "hungarian", "executor": "nearest"},
+             "htamp": {"goal_matcher": "mlp", "executor": "mlp"},
+             "mage-x": {"goal_matcher": "graph", "executor": "subgraph"}}
+#: Every learned method of this module -> its weights' settings.
+VARIANTS = {"masp": {"goal_matcher": "graph", "executor": "graph"}, **ABLATIONS, **BASELINES}
 
 
 class MASPPolicy:
@@ -63,17 +74,14 @@ class MASPPolicy:
         if getattr(world.scenario, "kind", None) != "particle":
             raise ValueError(f"{name}: expected a particle world (mpe-* scenario)")
         self.world = world
-        if checkpoint is None and name in ABLATIONS:
-            checkpoint = KEPT_DIR / name / "mpe-20-seed0.pt"
-            if not checkpoint.exists():
-                raise ValueError(f"{name}: no weights given and none kept at results/training/{name}/ (a source "
-                                 "checkout keeps them); pass checkpoint=PATH")
+        if checkpoint is None and name != "masp":
+            checkpoint = kept_weights(name, world.scenario)
         self.nets, self.meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
         self.nets.eval()
-        c, want = self.nets.config, ABLATIONS.get(name, {"goal_matcher": "graph", "executor": "graph"})
+        c, want = self.nets.config, VARIANTS[name]
         got = {k: getattr(c, k) for k in want}
         if got != want:
-            other = [m for m, v in ABLATIONS.items() if all(getattr(c, k) == x for k, x in v.items())]
+            other = [m for m, v in VARIANTS.items() if all(getattr(c, k) == x for k, x in v.items())]
             raise ValueError(f"{name}: the checkpoint's networks are {got}, expected {want}"
                              + (f"; these are {other[0]} weights: use that method" if other else ""))
         if c.fixed_size and world.num_agents != c.team_size:
@@ -134,10 +142,9 @@ class MASPPolicy:
                     self.drawn_for = obs["alive"].clone()
                 else:
                     new = self.goals
-            elif self.decode == "hungarian":  # diagnostic: the Hungarian reference instead of the Goal Matcher
-                new = hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], mask)
-                nearest = torch.cdist(obs["agent_pos"], obs["landmark_pos"]).argmin(-1)
-                new = torch.where(new >= 0, new, nearest)  # agents left without a goal: the nearest landmark
+            elif self.decode == "hungarian" or self.nets.config.goal_matcher == "hungarian":
+                # h-mappo, or the diagnostic: the Hungarian reference instead of the Goal Matcher
+                new = hungarian_goals(obs["agent_pos"], obs["landmark_pos"], obs["alive"], mask)
             else:
                 new = self._goals(self.nets.gm_logits(obs, self.scale, mask), obs["alive"], mask)
             self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
@@ -148,11 +155,25 @@ class MASPPolicy:
 
 
 
-def _ablation(method: str) -> type:
-    """The policy class of one of :data:`ABLATIONS`: :class:`MASPPolicy` that checks its weights' variant."""
-    doc = (f"``{method}``: :class:`MASPPolicy` around weights with {ABLATIONS[method]}; default weights: "
-           f"``results/training/{method}/mpe-20-seed0.pt``.")
+def kept_weights(method: str, scenario):
+    """The kept seed-0 weights of ``method`` for a scenario: ``results/training/METHOD/PRESET-seed0.pt``.
+
+    The ablations were trained on ``mpe-20`` only; a baseline has weights per team size, and a
+    team-change preset (``mpe-20to10``) uses those of its starting team (``mpe-20``)."""
+    names = ["mpe-20"] if method in ABLATIONS else [scenario.name, f"mpe-{scenario.num_agents}"]
+    for stem in dict.fromkeys(names):
+        path = KEPT_DIR / method / f"{stem}-seed0.pt"
+        if path.exists():
+            return path
+    raise ValueError(f"{method}: no weights given and none kept for {scenario.name!r} at results/training/{method}/ "
+                     f"(expected {names[0]}-seed0.pt; a source checkout keeps them); pass checkpoint=PATH")
+
+
+def _variant(method: str) -> type:
+    """The policy class of an ablation or baseline: :class:`MASPPolicy` that checks its weights' variant."""
+    doc = (f"``{method}``: :class:`MASPPolicy` around weights with {VARIANTS[method]}; default weights: "
+           f"``results/training/{method}/`` (:func:`kept_weights`).")
     return type(method.replace("-", "_"), (MASPPolicy,), {"METHOD": method, "__doc__": doc})
 
 
-masp_rg, gm_mlp, cae_mlp = (_ablation(m) for m in ABLATIONS)
+masp_rg, gm_mlp, cae_mlp, h_mappo, htamp, mage_x = (_variant(m) for m in (*ABLATIONS, *BASELINES))

@@ -1,0 +1,100 @@
+"""The RL baselines' views of the other agents, in place of the Group Information Fusion.
+
+Each module has the fusion's signature ``forward(pair, groups, alive) -> (B, N, width)``
+(``groups`` is ignored) and is picked by :attr:`masp_lite.config.NetConfig.executor`; the
+goal and obstacle embeddings, the head and the critic around it are MASP's, so a baseline
+differs from MASP only where the paper says it does.
+
+* :class:`NearestMLP` (``executor="nearest"``, used by ``h-mappo``): an MLP over the
+  ``neighbours`` nearest alive agents' pair features, nearest first — the MAPPO executor
+  without Group Information Fusion ("MLP over own state, goal and nearest neighbours");
+  missing neighbours (a smaller or thinned team) read as an agent at the sensing edge.
+* :class:`AttentionSubgraph` (``executor="subgraph"``, used by ``mage-x``): MAGE-X's
+  executor graph. Every other alive agent gets an attention score from its pair features
+  (an MLP); the ``neighbours`` best-scored ones form agent ``k``'s subgraph, and one graph
+  layer mixes them by the softmax of their scores:
+  ``relu(W (h_k + sum_j alpha_kj h_j) / 2 + b)`` with ``h = relu(W_e x + b_e)``.
+  MAGE-X selects the subgraph by attention and runs a GNN on it; the exact layer is our
+  choice, kept as close to MASP's GCN as possible. The selection (``topk``) has no gradient;
+  the scores of the selected agents do, through ``alpha``.
+
+Pair features are :func:`masp_lite.nets.masp.pair_features` (distance clipped at 1 m), so
+"nearest" ranks the agents within 1 m by distance; beyond it they all sit at the edge and
+the order among them is arbitrary but fixed (by index). Both modules serve any team size.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from .encoders import mlp
+
+__all__ = ["NearestMLP", "AttentionSubgraph", "nearest_others"]
+
+FAR = (0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+"""Pair features of a missing neighbour: no offset, at the sensing edge, not moving, not self."""
+
+
+def nearest_others(pair: torch.Tensor, alive: torch.Tensor, count: int, key: torch.Tensor | None = None):
+    """Indices (B, N, count) of each agent's ``count`` best other alive agents, and which exist.
+
+    By default the best are the nearest (smallest clipped distance, feature 2); ``key``
+    (B, N, N) ranks by it instead (smallest first). Self and dropped agents come last and
+    are flagged missing in the returned mask (B, N, count).
+    """
+    B, N = pair.shape[:2]
+    rank = pair[..., 2] if key is None else key
+    eye = torch.eye(N, dtype=torch.bool, device=pair.device)
+    bad = eye.unsqueeze(0) | ~alive.unsqueeze(1)                           # [b, k, j]: j is k or dropped
+    k = min(count, N)
+    idx = rank.masked_fill(bad, float("inf")).topk(k, dim=-1, largest=False).indices
+    ok = ~torch.gather(bad, 2, idx)
+    if k < count:  # fewer agents than places: pad with missing ones
+        idx = torch.cat([idx, idx.new_zeros(B, N, count - k)], -1)
+        ok = torch.cat([ok, ok.new_zeros(B, N, count - k)], -1)
+    return idx, ok
+
+
+def _gather_pairs(pair, idx, ok):
+    F = pair.shape[-1]
+    rows = torch.gather(pair, 2, idx.unsqueeze(-1).expand(*idx.shape, F))
+    far = torch.tensor(FAR, dtype=pair.dtype, device=pair.device)
+    return torch.where(ok.unsqueeze(-1), rows, far)
+
+
+class NearestMLP(nn.Module):
+    """``h-mappo``'s executor view: MLP over the ``neighbours`` nearest agents (B, N, width)."""
+
+    def __init__(self, in_features: int = 6, width: int = 32, neighbours: int = 3):
+        super().__init__()
+        self.neighbours = neighbours
+        self.net = mlp([neighbours * in_features, 2 * width, width], last_activation=True)
+
+    def forward(self, pair: torch.Tensor, groups, alive: torch.Tensor) -> torch.Tensor:
+        idx, ok = nearest_others(pair, alive, self.neighbours)
+        rows = _gather_pairs(pair, idx, ok)                                   # (B, N, K, F)
+        return self.net(rows.flatten(2))
+
+
+class AttentionSubgraph(nn.Module):
+    """``mage-x``'s executor view: a graph layer on the ``neighbours`` best-attended agents."""
+
+    def __init__(self, in_features: int = 6, width: int = 32, neighbours: int = 3):
+        super().__init__()
+        self.neighbours = neighbours
+        self.score = mlp([in_features, width, 1])
+        self.embed = mlp([in_features, width], last_activation=True)
+        self.gcn = nn.Linear(width, width)
+
+    def forward(self, pair: torch.Tensor, groups, alive: torch.Tensor) -> torch.Tensor:
+        B, N, _, F = pair.shape
+        with torch.no_grad():  # the selection: every pair scored, no gradient through topk
+            all_scores = self.score(pair).squeeze(-1)                         # (B, N, N)
+        idx, ok = nearest_others(pair, alive, self.neighbours, key=-all_scores)
+        rows = _gather_pairs(pair, idx, ok)                                   # (B, N, K, F)
+        s = self.score(rows).squeeze(-1).masked_fill(~ok, float("-inf"))
+        alpha = torch.nan_to_num(torch.softmax(s, -1), nan=0.0)               # no neighbour: all zero
+        own = torch.diagonal(pair, dim1=1, dim2=2).transpose(1, 2)            # (B, N, F): k seen from k
+        h_self, h = self.embed(own), self.embed(rows)
+        mixed = (h_self + (alpha.unsqueeze(-1) * h).sum(2)) / 2
+        return torch.relu(self.gcn(mixed))
