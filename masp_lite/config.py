@@ -28,7 +28,8 @@ __all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig",
 
 GM_REFERENCES = ("distance", "squared", "bottleneck")
 """The settings of :attr:`RewardConfig.gm_reference`."""
-GOAL_MATCHERS, EXECUTORS = ("graph", "mlp", "random", "hungarian"), ("graph", "mlp", "nearest", "subgraph")
+GOAL_MATCHERS = ("graph", "mlp", "random", "hungarian", "none")
+EXECUTORS = ("graph", "mlp", "nearest", "subgraph", "attention", "radius")
 """The settings of :attr:`NetConfig.goal_matcher` and :attr:`NetConfig.executor`."""
 
 
@@ -62,11 +63,12 @@ class NetConfig:
     """The high level (the paper's ablations and baselines): ``graph``, MASP's Goal Matcher;
     ``mlp``, "GM w.o. Graph" (:class:`~masp_lite.nets.ablations.GoalMatcherMLP`); ``random``,
     "MASP w. RG": distinct random goals, no Goal Matcher trained; ``hungarian``, the Hungarian
-    assignment every global step, nothing trained (``h-mappo``)."""
+    assignment every global step, nothing trained (``h-mappo``); ``none``, no goals at all: the
+    executor sees every landmark and is trained on a coverage reward (``mappo``, ``darl1n``)."""
     executor: str = "graph"
     """The executor's view of the other agents: ``graph``, the Group Information Fusion;
-    ``mlp``, "CAE w.o. Graph" (:class:`~masp_lite.nets.ablations.FusionMLP`); ``nearest`` and
-    ``subgraph``, the baselines' views (:mod:`masp_lite.nets.baselines`)."""
+    ``mlp``, "CAE w.o. Graph" (:class:`~masp_lite.nets.ablations.FusionMLP`); ``nearest``,
+    ``subgraph``, ``attention`` and ``radius``, the RL baselines' views (:mod:`masp_lite.nets.baselines`)."""
     neighbours_seen: int = 3
     """Other agents the ``nearest`` and ``subgraph`` executors see."""
     team_size: int = 0

@@ -64,12 +64,23 @@ METHOD_SETTINGS = {m: dict(v) for m, v in VARIANTS.items()}
 METHOD_SETTINGS["mage-x"]["global_step"] = 1000
 
 
-def method_config(method: str, sets=(), scenario: str | None = None) -> tuple[TrainConfig, dict]:
-    """The configuration of ``train --method METHOD --set ...``: the method's settings, then ``sets``.
+def method_config(method: str | None, sets=(), scenario: str | None = None) -> tuple[str, TrainConfig, dict]:
+    """``(method, config, scenario overrides)`` of ``train [--method METHOD] --set ...``.
 
-    One clear error for a method that is not trained here, a ``--set`` that would make it
-    another method, or a scenario the trainer does not run (drones).
+    The configuration is the method's settings (:data:`METHOD_SETTINGS`), then ``sets``.
+    Without a method, the one whose settings ``sets`` give is meant (``--set
+    goal_matcher=random`` is ``masp-rg``, as the ablations' manifests were written), MASP by
+    default. One clear error for a method that is not trained here, a ``--set`` that would
+    make it another method, or a scenario the trainer does not run (drones).
     """
+    if method is None:
+        cfg, _ = parse_config(sets)
+        got = {k: getattr(cfg.net, k) for k in ("goal_matcher", "executor")}
+        match = [m for m, v in VARIANTS.items() if v == got]
+        if not match:
+            raise ValueError(f"train: no method has the settings {got}; expected one of "
+                             + "; ".join(f"{m} {v}" for m, v in VARIANTS.items()))
+        method = match[0]
     if method not in METHOD_SETTINGS:
         raise ValueError(f"train: {method!r} is not a method trained here; expected one of {sorted(METHOD_SETTINGS)}")
     if scenario is not None:
@@ -82,7 +93,7 @@ def method_config(method: str, sets=(), scenario: str | None = None) -> tuple[Tr
         if getattr(cfg.net, k) != own[k]:
             raise ValueError(f"train --method {method}: {k} is {own[k]!r} for this method; --set {k}="
                              f"{getattr(cfg.net, k)} makes another one (see masp_lite.policies.masp.VARIANTS)")
-    return cfg, overrides
+    return method, cfg, overrides
 
 
 def parse_config(sets) -> tuple[TrainConfig, dict]:

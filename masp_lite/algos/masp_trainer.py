@@ -31,7 +31,9 @@ distinct random goals when an episode starts (and again when the team changes) a
 only the executor; ``goal_matcher="hungarian"`` (``h-mappo``) takes the Hungarian assignment
 every global step and trains only the executor; the ``mlp`` variants are built for the
 scenario's team size (``team_size`` is set from it); ``global_step`` longer than the horizon
-(``mage-x``) assigns goals once, at the start.
+(``mage-x``) assigns goals once, at the start; ``goal_matcher="none"`` (``mappo``,
+``darl1n``) has no goals: the executor sees the landmarks and earns
+:func:`~masp_lite.algos.rewards.coverage_reward` instead of R_CAE.
 """
 from __future__ import annotations
 
@@ -45,7 +47,7 @@ from ..nets.decoding import conditional_logits, random_goals, sequential_sample
 from ..nets.masp import MASPNets
 from .assignment import hungarian_goals
 from .mappo import RolloutStorage, ValueNorm, gae, ppo_update
-from .rewards import executor_reward, goal_matcher_reward
+from .rewards import coverage_reward, executor_reward, goal_matcher_reward
 
 __all__ = ["MASPTrainer", "sample", "OBS_KEYS"]
 
@@ -78,7 +80,8 @@ class MASPTrainer:
                                                                               team_size=self.world.num_agents))
         self.random_goals = cfg.net.goal_matcher == "random"
         self.hungarian_goals = cfg.net.goal_matcher == "hungarian"
-        self.gm_trained = not (self.random_goals or self.hungarian_goals)
+        self.goal_free = cfg.net.goal_matcher == "none"
+        self.gm_trained = not (self.random_goals or self.hungarian_goals or self.goal_free)
         torch.manual_seed(self.seed)  # network initialisation
         self.nets = MASPNets(cfg.net)
         n = self.nets
@@ -106,6 +109,8 @@ class MASPTrainer:
                     goal_mask = ~obs["reached"] if w.scenario.varying else None
                     goals, drawn_for = random_goals(obs["alive"], obs["landmark_pos"].shape[1], g, goal_mask), \
                         obs["alive"].clone()
+            elif self.goal_free:  # mappo, darl1n: no goals; the executor sees every landmark
+                pass
             elif self.hungarian_goals:
                 if t % cfg.net.global_step == 0:  # h-mappo: the Hungarian assignment every global step
                     goal_mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True) if w.scenario.varying else None
@@ -125,10 +130,14 @@ class MASPTrainer:
             actions, logp = sample(logits, g)
             alive = obs["alive"].clone()
             obs, info = w.step(torch.where(alive, actions, torch.zeros_like(actions)))
-            goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand(B, N, 2))
-            r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
-                                w.scenario.world_size, cfg.reward.bonus_coef, cfg.reward.distance_coef,
-                                cfg.reward.collision_coef)
+            rc = cfg.reward
+            if self.goal_free:
+                r = coverage_reward(obs["agent_pos"], obs["landmark_pos"], info["agent_collisions"], alive, self.reach,
+                                    w.scenario.world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)
+            else:
+                goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand(B, N, 2))
+                r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
+                                    w.scenario.world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)
             cae.add(**snap, pair=inputs[0], groups=inputs[1], goal_f=inputs[3], obstacle_f=inputs[4],
                     actions=actions, logp=logp, values=v, rewards=r, mask=alive)
             cov.append(info["covered"].all(-1))

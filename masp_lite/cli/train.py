@@ -1,6 +1,6 @@
 """``python -m masp_lite train --method masp --scenario mpe-20 [--out DIR] [--resume] [--seed S] [--set k=v]``.
 
-Trains MASP, an ablation or a goal-based RL baseline (``--method``, settings from
+Trains MASP, an ablation or an RL baseline (``--method``, settings from
 :func:`masp_lite.training.method_config`) with :func:`masp_lite.training.train` (run folder,
 exact resume, manifest).
 ``--set`` takes any training setting (:class:`masp_lite.config.TrainConfig`'s fields, e.g.
@@ -33,8 +33,9 @@ EXAMPLES = [
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--method", default="masp", help="learned method to train: masp, an ablation (masp-rg, gm-mlp, "
-                        "cae-mlp) or a baseline (h-mappo, htamp, mage-x); default masp")
+    parser.add_argument("--method", default=None, help="learned method to train: masp, an ablation (masp-rg, gm-mlp, "
+                        "cae-mlp) or a baseline (h-mappo, htamp, mage-x, mappo, darl1n); default: the one the --set values make, "
+                        "masp without any")
     parser.add_argument("--scenario", required=True, help="particle scenario, e.g. mpe-20")
     parser.add_argument("--out", default=None, help="run folder (default runs/METHOD-SCENARIO-seedS)")
     parser.add_argument("--resume", action="store_true", help="continue the run saved in --out")
@@ -77,7 +78,7 @@ def _interrupted(args, out: str, cfg) -> str:
 def run(args) -> int:
     if args.threads < 1:
         raise ValueError(f"--threads: expected a positive int, got {args.threads}")
-    cfg, overrides = method_config(args.method, args.sets, args.scenario)
+    args.method, cfg, overrides = method_config(args.method, args.sets, args.scenario)
     torch.set_num_threads(args.threads)
     out = args.out or f"runs/{args.method}-{args.scenario}-seed{args.seed}"
     command = "python -m masp_lite train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \

@@ -35,6 +35,8 @@ __all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "pick", "p
            "evaluate_records", "render", "build"]
 
 _MPE_COLUMNS = ("h-orca", "h-rrtstar", "h-voronoi", "h-mappo", "mappo", "darl1n", "htamp", "mage-x", "masp")
+_RL = ("h-mappo", "mappo", "darl1n", "htamp", "mage-x")
+"""The RL baselines: their cells are their kept training seeds, ``results/training/METHOD/``."""
 _OURS_ONLY = ("h-greedy", "h-capt", "h-bottleneck")
 _LABEL = {"h-orca": "(H)ORCA", "h-rrtstar": "(H)RRT*", "h-voronoi": "(H)Voronoi", "h-mappo": "(H)MAPPO",
           "mappo": "MAPPO", "darl1n": "DARL1N", "htamp": "HTAMP", "mage-x": "MAGE-X", "masp": "MASP",
@@ -101,14 +103,16 @@ def training_seed(rec: dict, kept: str = "") -> int | None:
     ``results/training/BASE-seedK.pt`` (the kept weights of training seed K of the scenario's
     preset, or of the preset whose weights it runs zero-shot: :func:`masp_lite.weights.trained_preset`)
     is K. With ``kept`` (a folder under ``results/training/``, e.g. ``"faithful/"``), only
-    ``results/training/KEPT/BASE-seedK.pt`` counts: the training seeds of another recipe."""
+    ``results/training/KEPT/BASE-seedK.pt`` counts: the training seeds of another recipe (BASE
+    the scenario's preset, or the one whose weights it runs zero-shot, as above)."""
     opts = rec.get("method_options", {})
     if not _preset_batched(rec):
         return None
     if not opts:
         return None if kept else int(read_manifest().get(base_scenario(rec["scenario"]), {}).get("seed", 0))
     m = re.fullmatch(r"results/training/(.+)-seed(\d+)\.pt", str(opts.get("checkpoint", "")))
-    if set(opts) == {"checkpoint"} and m and m.group(1) == kept + trained_preset(rec["scenario"]):
+    presets = {kept + trained_preset(rec["scenario"]), kept + base_scenario(rec["scenario"])}
+    if set(opts) == {"checkpoint"} and m and m.group(1) in presets:
         return int(m.group(2))
     return None
 
@@ -200,13 +204,18 @@ def _metric_table(name, title, scenarios, columns, records, latex, paper=None, m
 
 
 def _columns(methods):
-    return [(_LABEL[m], m, "") for m in methods]
+    return [(_LABEL[m], m, f"{m}/" if m in _RL else "") for m in methods]
 
 
 def table_mpe(records, latex=False) -> Table:
-    """Table "MPE" (fixed teams, N = 5, 20, 50): the paper's columns, then our extra baselines."""
-    return _metric_table("mpe", "MPE, N = 5 / 20 / 50", ("mpe-5", "mpe-20", "mpe-50"),
-                         _columns(_MPE_COLUMNS + _OURS_ONLY), records, latex)
+    """Table "MPE" (fixed teams, N = 5, 20, 50): the paper's columns, then our extra baselines.
+
+    MASP is the shipped MASP; the RL baselines are their kept seeds, trained at each team size
+    with the budget of "MASP (budget)": MASP from random networks with the same recipe and
+    env steps at each team size (``results/training/masp-budget/``)."""
+    columns = _columns(_MPE_COLUMNS) + [("MASP (budget)", "masp", "masp-budget/")] + _columns(_OURS_ONLY)
+    return _metric_table("mpe", "MPE, N = 5 / 20 / 50", ("mpe-5", "mpe-20", "mpe-50"), columns, records, latex,
+                         paper=lambda sc, i: PAPER["mpe"].get((sc, columns[i][1])) if i < len(_MPE_COLUMNS) else None)
 
 
 def table_mpe_varying(records, latex=False) -> Table:

@@ -40,7 +40,7 @@ from torch import nn
 from ..config import NetConfig
 from ..envs.particle import NUM_ACTIONS
 from .ablations import FusionMLP, GoalMatcherMLP
-from .baselines import AttentionSubgraph, NearestMLP
+from .baselines import LANDMARK_FEATURES, AttentionPool, AttentionSubgraph, NearestMLP, RadiusMean, landmark_features
 from .encoders import CrossEncoder, SelfEncoder, mlp
 from .fusion import GroupInformationFusion, group_division
 
@@ -195,10 +195,11 @@ class GoalMatcherCritic(_GraphEncoders):
 class CoordinatedActionExecutor(nn.Module):
     """Low-level actor: ``forward(pair, groups, alive, goal_f, obstacle_f) -> logits`` (B, N, 5)."""
 
-    def __init__(self, width: int = 32, gcn_layers: int = 1, obstacles_seen: int = 2, fusion: nn.Module | None = None):
+    def __init__(self, width: int = 32, gcn_layers: int = 1, obstacles_seen: int = 2, fusion: nn.Module | None = None,
+                 goal_embed: nn.Module | None = None):
         super().__init__()
         self.fusion = GroupInformationFusion(PAIR_FEATURES, width, gcn_layers) if fusion is None else fusion
-        self.goal_embed = mlp([GOAL_FEATURES, width], last_activation=True)
+        self.goal_embed = mlp([GOAL_FEATURES, width], last_activation=True) if goal_embed is None else goal_embed
         self.obstacle_embed = mlp([OBSTACLE_FEATURES * obstacles_seen, width], last_activation=True)
         self.head = mlp([3 * width, width, width, NUM_ACTIONS])
 
@@ -250,8 +251,11 @@ class MASPNets(nn.Module):
         self.gm_critic = GoalMatcherCritic(c.width)
         fusion = {"graph": lambda: None, "mlp": lambda: FusionMLP(PAIR_FEATURES, c.width, c.team_size),
                   "nearest": lambda: NearestMLP(PAIR_FEATURES, c.width, c.neighbours_seen),
-                  "subgraph": lambda: AttentionSubgraph(PAIR_FEATURES, c.width, c.neighbours_seen)}[c.executor]()
-        self.cae = CoordinatedActionExecutor(c.width, c.gcn_layers, c.obstacles_seen, fusion)
+                  "subgraph": lambda: AttentionSubgraph(PAIR_FEATURES, c.width, c.neighbours_seen),
+                  "attention": lambda: AttentionPool(PAIR_FEATURES, c.width),
+                  "radius": lambda: RadiusMean(PAIR_FEATURES, c.width)}[c.executor]()
+        landmarks = AttentionPool(LANDMARK_FEATURES, c.width) if c.goal_matcher == "none" else None  # no goals
+        self.cae = CoordinatedActionExecutor(c.width, c.gcn_layers, c.obstacles_seen, fusion, landmarks)
         self.cae_critic = ExecutorCritic(c.width)
 
     @property
@@ -267,12 +271,17 @@ class MASPNets(nn.Module):
         a, g, _ = gm_inputs(obs, scale)
         return self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
 
-    def cae_inputs(self, obs: dict, goals: torch.Tensor, perm: torch.Tensor) -> tuple:
-        """Executor inputs for goal indices ``goals`` (B, N) and random group order ``perm`` (B, N)."""
+    def cae_inputs(self, obs: dict, goals: torch.Tensor | None, perm: torch.Tensor) -> tuple:
+        """Executor inputs for goal indices ``goals`` (B, N) and random group order ``perm`` (B, N).
+
+        ``goals`` None (the goal-free baselines): every landmark instead
+        (:func:`~masp_lite.nets.baselines.landmark_features`)."""
         pos, vel = obs["agent_pos"], obs["agent_vel"]
-        goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos))
-        return (pair_features(pos, vel), group_division(perm, self.config.group_size), obs["alive"],
-                goal_features(pos, vel, goal_pos),
+        if goals is None:
+            goal_f = landmark_features(pos, vel, obs["landmark_pos"], obs["covered"])
+        else:
+            goal_f = goal_features(pos, vel, torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos)))
+        return (pair_features(pos, vel), group_division(perm, self.config.group_size), obs["alive"], goal_f,
                 obstacle_features(pos, obs["obstacle_pos"], self.config.obstacles_seen))
 
     def cae_logits(self, inputs: tuple) -> torch.Tensor:
@@ -281,4 +290,7 @@ class MASPNets(nn.Module):
     def cae_forward(self, inputs: tuple, obs: dict, horizon: int) -> tuple[torch.Tensor, torch.Tensor]:
         """Executor logits (B, N, 5) and critic values (B, N) from one pass of the fusion."""
         feats = self.cae.features(*inputs)
-        return self.cae.head(torch.cat(feats, dim=-1)), self.cae_critic(feats, global_features(obs, horizon))
+        extra = global_features(obs, horizon)
+        if self.config.executor == "radius":  # darl1n: the value sees the one-hop view and the time only
+            extra = torch.cat([torch.zeros_like(extra[..., :2]), extra[..., 2:]], dim=-1)
+        return self.cae.head(torch.cat(feats, dim=-1)), self.cae_critic(feats, extra)

@@ -12,7 +12,7 @@ strings and imported on first use, so a method's dependencies (MuJoCo, scipy's s
 code, the networks) load only when it is asked for. The methods live in this package:
 :mod:`.reference` (``random``, ``h-greedy``, ``h-capt``, ``h-bottleneck``), :mod:`.planners` (the "(H)" planners),
 :mod:`.drones` (the drone version of ``h-greedy``) and :mod:`.masp` (``masp``, its ablations ``masp-rg``,
-``gm-mlp``, ``cae-mlp``, and the goal-based RL baselines ``h-mappo``, ``htamp``, ``mage-x``).
+``gm-mlp``, ``cae-mlp``, and the RL baselines ``h-mappo``, ``htamp``, ``mage-x``, ``mappo``, ``darl1n``).
 """
 from __future__ import annotations
 
@@ -54,6 +54,8 @@ METHODS: dict[str, str] = {
     "h-mappo": "masp_lite.policies.masp:h_mappo",
     "htamp": "masp_lite.policies.masp:htamp",
     "mage-x": "masp_lite.policies.masp:mage_x",
+    "mappo": "masp_lite.policies.masp:mappo",
+    "darl1n": "masp_lite.policies.masp:darl1n",
 }
 
 

@@ -10,8 +10,9 @@ The paper's ablations and its goal-based RL baselines are the same policy around
 of another :class:`~masp_lite.config.NetConfig` (:data:`VARIANTS`): ``masp-rg`` (random
 goals), ``gm-mlp`` and ``cae-mlp`` (an MLP instead of a graph, for one team size);
 ``h-mappo`` (Hungarian goals, an executor over the nearest agents), ``htamp`` (MLPs at both
-levels, flat observations) and ``mage-x`` (goals once, at the start, by an attention graph
-network; an executor on an attention-selected subgraph). Their weights are the kept training
+levels, flat observations), ``mage-x`` (goals once, at the start, by an attention graph
+network; an executor on an attention-selected subgraph), and the goal-free ``mappo``
+(attention over all agents and landmarks) and ``darl1n`` (one-hop neighbourhoods). Their weights are the kept training
 seeds ``results/training/METHOD/PRESET-seedK.pt`` of a source checkout (seed 0 unless
 ``checkpoint`` says otherwise, :func:`kept_weights`); each method refuses another's weights,
 so a record never names the wrong method.
@@ -26,16 +27,18 @@ from ..nets.masp import MASPNets
 from ..weights import KEPT_DIR, load_weights
 
 __all__ = ["MASPPolicy", "ABLATIONS", "BASELINES", "VARIANTS", "kept_weights", "masp_rg", "gm_mlp", "cae_mlp",
-           "h_mappo", "htamp", "mage_x"]
+           "h_mappo", "htamp", "mage_x", "mappo", "darl1n"]
 
 #: The paper's ablations: method name -> the NetConfig settings its weights must have.
 ABLATIONS = {"masp-rg": {"goal_matcher": "random", "executor": "graph"},
              "gm-mlp": {"goal_matcher": "mlp", "executor": "graph"},
              "cae-mlp": {"goal_matcher": "graph", "executor": "mlp"}}
-#: The goal-based RL baselines (section "Baselines"; :mod:`masp_lite.nets.baselines`), likewise.
+#: The RL baselines (section "Baselines"; :mod:`masp_lite.nets.baselines`), likewise.
 BASELINES = {"h-mappo": {"goal_matcher": "hungarian", "executor": "nearest"},
              "htamp": {"goal_matcher": "mlp", "executor": "mlp"},
-             "mage-x": {"goal_matcher": "graph", "executor": "subgraph"}}
+             "mage-x": {"goal_matcher": "graph", "executor": "subgraph"},
+             "mappo": {"goal_matcher": "none", "executor": "attention"},
+             "darl1n": {"goal_matcher": "none", "executor": "radius"}}
 #: Every learned method of this module -> its weights' settings.
 VARIANTS = {"masp": {"goal_matcher": "graph", "executor": "graph"}, **ABLATIONS, **BASELINES}
 
@@ -132,7 +135,9 @@ class MASPPolicy:
     @torch.inference_mode()
     def act(self, obs) -> torch.Tensor:
         due = obs["t"] % self.global_step == 0
-        if self.goals is None or bool(due.any()):
+        if self.nets.config.goal_matcher == "none":  # mappo, darl1n: no goals, every landmark in view
+            pass
+        elif self.goals is None or bool(due.any()):
             mask = None
             if self.world.scenario.varying:  # landmarks already reached count for SR; pick among the rest
                 mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
@@ -148,8 +153,8 @@ class MASPPolicy:
             else:
                 new = self._goals(self.nets.gm_logits(obs, self.scale, mask), obs["alive"], mask)
             self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
-        B, N = self.goals.shape
-        perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(self.goals.device)
+        B, N = obs["alive"].shape
+        perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(obs["alive"].device)
         actions = self._pick(self.nets.cae_logits(self.nets.cae_inputs(obs, self.goals, perm)))
         return torch.where(obs["alive"], actions, torch.zeros_like(actions))
 
@@ -176,4 +181,4 @@ def _variant(method: str) -> type:
     return type(method.replace("-", "_"), (MASPPolicy,), {"METHOD": method, "__doc__": doc})
 
 
-masp_rg, gm_mlp, cae_mlp, h_mappo, htamp, mage_x = (_variant(m) for m in (*ABLATIONS, *BASELINES))
+masp_rg, gm_mlp, cae_mlp, h_mappo, htamp, mage_x, mappo, darl1n = (_variant(m) for m in (*ABLATIONS, *BASELINES))
