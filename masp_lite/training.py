@@ -46,22 +46,16 @@ from .algos.masp_trainer import MASPTrainer
 from .config import TrainConfig, field_types, parse_sets
 from .envs import OVERRIDES, Scenario, make
 from .evaluation import collision_rate, rollout, steps, success_rate
-from .policies.masp import VARIANTS, MASPPolicy
+from .policies.masp import METHOD_SETTINGS, VARIANTS, MASPPolicy
 from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256, trained_world
 
-__all__ = ["train", "parse_config", "METHOD_SETTINGS", "method_config", "evaluate_nets", "checkpoint_iterations", "ship_run", "ship_zero_shot",
+__all__ = ["train", "parse_config", "method_config", "evaluate_nets", "checkpoint_iterations", "ship_run", "ship_zero_shot",
            "CSV_FIELDS", "EVAL_SEED"]
 
 CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward",
               "gm_policy_loss", "gm_value_loss", "gm_entropy", "cae_policy_loss", "cae_value_loss", "cae_entropy",
               "eval_sr", "eval_steps", "eval_cr"]
 EVAL_SEED = 12_345
-
-
-METHOD_SETTINGS = {m: dict(v) for m, v in VARIANTS.items()}
-"""Trainable method -> the training settings that make it that method. ``mage-x`` also sets
-``global_step`` past every horizon: its goals are assigned once, when the episode starts."""
-METHOD_SETTINGS["mage-x"]["global_step"] = 1000
 
 
 def method_config(method: str | None, sets=(), scenario: str | None = None) -> tuple[str, TrainConfig, dict]:

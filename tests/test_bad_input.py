@@ -268,7 +268,9 @@ def test_bench_train_smoke_and_bad_options(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "masp (plain autograd)" in text and "x plain" in text
     rows = json.loads(out.read_text())["env_steps_per_s"]["mpe-5"]
-    assert set(rows) == {"masp", "masp (plain autograd)"} and all(v > 0 for v in rows.values())
+    from masp_lite.bench.train import METHODS
+    assert set(rows) == {*METHODS, "masp (plain autograd)"} and all(v > 0 for v in rows.values())
+    assert {"h-mappo", "mappo", "darl1n", "htamp", "mage-x"} <= set(METHODS) and "x masp" in text
     assert main(["bench", "train", "--methods", "nope"]) == 2
     assert "unknown ['nope']" in capsys.readouterr().err
     assert main(["bench", "train", "--scenarios", "drone-5"]) == 2

@@ -2,7 +2,7 @@
 
 One environment step is one step of one world (all its agents), the unit of every training
 budget in the manifests. For each scenario (``mpe-20`` and ``mpe-50`` by default) and each
-trainable method, the trainer is built with the from-scratch recipe
+method — MASP and the RL baselines, :data:`METHODS` — the trainer is built with the from-scratch recipe
 (:data:`masp_lite.config.FROM_SCRATCH`, ``--worlds`` worlds instead of its 32), one iteration
 (an episode in every world, then PPO on both levels) warms up, and ``--iterations``
 iterations are timed with ``time.perf_counter``, with ``--threads`` torch threads.
@@ -25,11 +25,12 @@ import torch
 
 from ..config import FROM_SCRATCH, TrainConfig
 from ..nets.encoders import plain_autograd
+from ..policies.masp import BASELINES, METHOD_SETTINGS
 
 __all__ = ["add_arguments", "run", "throughput", "METHODS"]
 
-METHODS = {"masp": {}}
-"""Trainable method -> the training settings it adds to the recipe."""
+METHODS = {m: METHOD_SETTINGS[m] for m in ("masp", *BASELINES)}
+"""Measured methods (MASP and the RL baselines) -> the training settings that make each one."""
 
 
 def add_arguments(parser) -> None:

@@ -20,13 +20,13 @@ differs from MASP only where the paper says it does.
 
 The goal-free baselines (``goal_matcher="none"``: ``mappo``, ``darl1n``) have no goal to
 embed: each agent sees every landmark instead, through :class:`AttentionPool` over
-:func:`landmark_features` (MAPPO with "the attention mechanism", as the paper applies it),
+:func:`masp_lite.nets.masp.landmark_features` (MAPPO with "the attention mechanism", as the paper applies it),
 and the other agents through
 
 * :class:`AttentionPool` over all alive others' pair features (``executor="attention"``,
   ``mappo``), or
 * :class:`RadiusMean` (``executor="radius"``, ``darl1n``): the mean embedding of the agents
-  within ``RADIUS`` = 1 m, DARL1N's one-hop neighbourhood; its critic sees no team-wide input
+  within 1 m (the pair features' sensing radius), DARL1N's one-hop neighbourhood; its critic sees no team-wide input
   either (:meth:`masp_lite.nets.masp.MASPNets.cae_forward`).
 
 Pair features are :func:`masp_lite.nets.masp.pair_features` (distance clipped at 1 m), so
@@ -40,29 +40,8 @@ from torch import nn
 
 from .encoders import mlp
 
-__all__ = ["NearestMLP", "AttentionSubgraph", "AttentionPool", "RadiusMean", "nearest_others",
-           "landmark_features", "LANDMARK_FEATURES", "RADIUS"]
+__all__ = ["NearestMLP", "AttentionSubgraph", "AttentionPool", "RadiusMean", "nearest_others"]
 
-LANDMARK_FEATURES = 7
-RADIUS = 1.0
-"""Metres: DARL1N's one-hop neighbourhood (the sensing radius of the pair features)."""
-
-
-def landmark_features(pos: torch.Tensor, vel: torch.Tensor, landmark_pos: torch.Tensor,
-                      covered: torch.Tensor) -> torch.Tensor:
-    """(B, N, M, 7): every landmark seen from every agent.
-
-    ``[unit direction (2), min(dist, 1 m), log(1 + dist), covered, own velocity / MAX_SPEED (2)]``,
-    the goal features of MASP's executor (:func:`masp_lite.nets.masp.goal_features`) for each
-    landmark, plus whether it is covered now.
-    """
-    from .masp import MAX_SPEED
-    rel = landmark_pos.unsqueeze(1) - pos.unsqueeze(2)                    # (B, N, M, 2)
-    d = rel.norm(dim=-1, keepdim=True)
-    B, N, M = rel.shape[:3]
-    cov = covered.to(pos.dtype).view(B, 1, M, 1).expand(B, N, M, 1)
-    v = (vel / MAX_SPEED).unsqueeze(2).expand(B, N, M, 2)
-    return torch.cat([rel / d.clamp(min=1e-6), d.clamp(max=1.0), torch.log1p(d), cov, v], dim=-1)
 
 FAR = (0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 """Pair features of a missing neighbour: no offset, at the sensing edge, not moving, not self."""
@@ -161,16 +140,15 @@ class AttentionPool(nn.Module):
 
 
 class RadiusMean(nn.Module):
-    """``darl1n``'s executor view: the mean embedding of the alive agents within ``RADIUS`` (B, N, width)."""
+    """``darl1n``'s executor view: the mean embedding of the alive agents within 1 m (B, N, width)."""
 
     def __init__(self, in_features: int = 6, width: int = 32):
         super().__init__()
         self.embed = mlp([in_features, width], last_activation=True)
 
     def forward(self, pair: torch.Tensor, groups, alive: torch.Tensor) -> torch.Tensor:
-        from .masp import SENSE
         N = pair.shape[1]
-        near = (pair[..., 2] * SENSE < RADIUS) & alive.unsqueeze(1) & ~torch.eye(N, dtype=torch.bool,
-                                                                               device=pair.device)
+        # pair feature 2 is min(dist, SENSE) / SENSE: below 1 means within SENSE = 1 m, the one-hop radius
+        near = (pair[..., 2] < 1.0) & alive.unsqueeze(1) & ~torch.eye(N, dtype=torch.bool, device=pair.device)
         w = near.to(pair.dtype).unsqueeze(-1)
         return (self.embed(pair) * w).sum(2) / w.sum(2).clamp(min=1.0)

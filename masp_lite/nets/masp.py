@@ -40,12 +40,12 @@ from torch import nn
 from ..config import NetConfig
 from ..envs.particle import NUM_ACTIONS
 from .ablations import FusionMLP, GoalMatcherMLP
-from .baselines import LANDMARK_FEATURES, AttentionPool, AttentionSubgraph, NearestMLP, RadiusMean, landmark_features
+from .baselines import AttentionPool, AttentionSubgraph, NearestMLP, RadiusMean
 from .encoders import CrossEncoder, SelfEncoder, mlp
 from .fusion import GroupInformationFusion, group_division
 
 __all__ = ["GoalMatcher", "GoalMatcherCritic", "CoordinatedActionExecutor", "ExecutorCritic",
-           "pair_features", "goal_features", "obstacle_features", "global_features", "gm_inputs",
+           "pair_features", "goal_features", "landmark_features", "obstacle_features", "global_features", "gm_inputs",
            "MASPNets", "MAX_SPEED", "SENSE"]
 
 MAX_SPEED = 2.0
@@ -53,7 +53,7 @@ MAX_SPEED = 2.0
 SENSE = 1.0
 """Metres at which neighbour and obstacle vectors are clipped."""
 
-PAIR_FEATURES, GOAL_FEATURES, OBSTACLE_FEATURES, GLOBAL_FEATURES = 6, 6, 3, 3
+PAIR_FEATURES, GOAL_FEATURES, OBSTACLE_FEATURES, GLOBAL_FEATURES, LANDMARK_FEATURES = 6, 6, 3, 3, 7
 
 
 def _clip(rel: torch.Tensor, radius: float) -> tuple[torch.Tensor, torch.Tensor]:
@@ -84,6 +84,20 @@ def goal_features(pos: torch.Tensor, vel: torch.Tensor, goal_pos: torch.Tensor) 
     unit = rel / d.clamp(min=1e-6)
     return torch.cat([unit, d.clamp(max=1.0), torch.log1p(d), vel / MAX_SPEED], dim=-1)
 
+
+def landmark_features(pos: torch.Tensor, vel: torch.Tensor, landmark_pos: torch.Tensor,
+                      covered: torch.Tensor) -> torch.Tensor:
+    """(B, N, M, 7): every landmark seen from every agent.
+
+    ``[unit direction (2), min(dist, 1 m), log(1 + dist), covered, own velocity / MAX_SPEED (2)]``,
+    the goal features of MASP's executor (:func:`goal_features`) for each landmark, plus whether it is covered now.
+    """
+    rel = landmark_pos.unsqueeze(1) - pos.unsqueeze(2)                    # (B, N, M, 2)
+    d = rel.norm(dim=-1, keepdim=True)
+    B, N, M = rel.shape[:3]
+    cov = covered.to(pos.dtype).view(B, 1, M, 1).expand(B, N, M, 1)
+    v = (vel / MAX_SPEED).unsqueeze(2).expand(B, N, M, 2)
+    return torch.cat([rel / d.clamp(min=1e-6), d.clamp(max=1.0), torch.log1p(d), cov, v], dim=-1)
 
 def obstacle_features(pos: torch.Tensor, obstacle_pos: torch.Tensor, count: int) -> torch.Tensor:
     """(B, N, 3 * count): the ``count`` nearest obstacles, nearest first.
@@ -275,7 +289,7 @@ class MASPNets(nn.Module):
         """Executor inputs for goal indices ``goals`` (B, N) and random group order ``perm`` (B, N).
 
         ``goals`` None (the goal-free baselines): every landmark instead
-        (:func:`~masp_lite.nets.baselines.landmark_features`)."""
+        (:func:`landmark_features`)."""
         pos, vel = obs["agent_pos"], obs["agent_vel"]
         if goals is None:
             goal_f = landmark_features(pos, vel, obs["landmark_pos"], obs["covered"])

@@ -26,7 +26,7 @@ from ..nets.decoding import DECODERS, joint_argmax, random_goals, sequential_sam
 from ..nets.masp import MASPNets
 from ..weights import KEPT_DIR, load_weights
 
-__all__ = ["MASPPolicy", "ABLATIONS", "BASELINES", "VARIANTS", "kept_weights", "masp_rg", "gm_mlp", "cae_mlp",
+__all__ = ["MASPPolicy", "ABLATIONS", "BASELINES", "VARIANTS", "METHOD_SETTINGS", "kept_weights", "masp_rg", "gm_mlp", "cae_mlp",
            "h_mappo", "htamp", "mage_x", "mappo", "darl1n"]
 
 #: The paper's ablations: method name -> the NetConfig settings its weights must have.
@@ -41,6 +41,10 @@ BASELINES = {"h-mappo": {"goal_matcher": "hungarian", "executor": "nearest"},
              "darl1n": {"goal_matcher": "none", "executor": "radius"}}
 #: Every learned method of this module -> its weights' settings.
 VARIANTS = {"masp": {"goal_matcher": "graph", "executor": "graph"}, **ABLATIONS, **BASELINES}
+#: Every learned method -> the training settings that make it (:func:`masp_lite.training.method_config`):
+#: its variant, and for ``mage-x`` a ``global_step`` past every horizon (goals assigned once, at the start).
+METHOD_SETTINGS = {m: dict(v) for m, v in VARIANTS.items()}
+METHOD_SETTINGS["mage-x"]["global_step"] = 1000
 
 
 class MASPPolicy:
