@@ -37,7 +37,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
 __all__ = ["hungarian", "hungarian_goals", "hungarian_random_subset", "bottleneck", "sequential", "assignment_cost", "distance_matrix",
-           "check_power"]
+           "check_power", "TeamAssignment", "TEAM_PROTOCOLS"]
 
 
 def _as_numpy(x, name: str, ndim: int) -> np.ndarray:
@@ -284,3 +284,55 @@ def assignment_cost(agent_pos, goal_pos, assignment, power: float = 1.0) -> torc
     dist = (dist if power == 1.0 else dist**power) * (idx >= 0)
     out = torch.from_numpy(dist.sum(1))
     return out if like is None else out.to(like.device, like.dtype)
+
+
+TEAM_PROTOCOLS = ("resolve", "random_subset", "sequential")
+"""How an "(H)" method assigns goals once a team has shrunk (more landmarks than agents):
+``resolve`` — every global step over all unreached landmarks (h-greedy's default);
+``random_subset`` — every global step over a random subset of the unreached landmarks, as
+many as agents (the paper's section "Varying Team Sizes"; the planners' default);
+``sequential`` — once when the team shrinks, then a leftover landmark goes to an agent
+only when it has reached its own (the paper's section "Goal Matcher":
+:func:`sequential`)."""
+
+
+class TeamAssignment:
+    """The "(H)" goal assignment of a world batch under one of :data:`TEAM_PROTOCOLS`.
+
+    ``assign(obs, current)`` -> (B, N) goal indices. Before a team shrinks, and for fixed
+    teams, it is the plain assignment (over the unreached landmarks when the team can
+    change, since success counts landmarks ever reached); ``cost``/``power`` as h-greedy's.
+    """
+
+    def __init__(self, protocol: str, varying: bool, cost: str = "sum", power: float = 1.0, seed: int = 0):
+        if protocol not in TEAM_PROTOCOLS:
+            raise ValueError(f"team_protocol: expected one of {list(TEAM_PROTOCOLS)}, got {protocol!r}")
+        self.protocol, self.varying, self.cost, self.power, self.seed = protocol, varying, cost, power, seed
+        self.reset()
+
+    def reset(self) -> None:
+        self.generator = torch.Generator().manual_seed(self.seed)
+        self._sequential = None  # (B,) bool: worlds whose post-shrink assignment has been made
+
+    def _plain(self, obs, goal_mask):
+        if self.cost == "bottleneck":
+            return bottleneck(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask)
+        return hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask, self.power)
+
+    def assign(self, obs, current=None) -> torch.Tensor:
+        if not self.varying:
+            return self._plain(obs, None)
+        unreached = ~obs["reached"]
+        if self.protocol == "random_subset":
+            return hungarian_random_subset(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached,
+                                           generator=self.generator)
+        plain = self._plain(obs, unreached)
+        if self.protocol == "resolve":
+            return plain
+        shrunk = ~obs["alive"].all(-1)
+        started = shrunk & (torch.zeros_like(shrunk) if self._sequential is None else self._sequential)
+        self._sequential = shrunk
+        if current is None or not bool(started.any()):  # no world past its first post-shrink assignment
+            return plain  # the first assignment after the shrink is the plain one over the unreached
+        later = sequential(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached, current)
+        return torch.where(started.unsqueeze(-1), later, plain)

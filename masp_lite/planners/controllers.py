@@ -30,8 +30,11 @@ import torch
 
 from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
 
-__all__ = ["velocity_to_action", "next_velocities", "arrive_velocity", "track_path",
-           "MAX_SPEED", "ARRIVE_GAIN"]
+__all__ = ["velocity_to_action", "next_velocities", "arrive_velocity", "track_path", "pad_paths",
+           "MAX_SPEED", "ARRIVE_GAIN", "GLOBAL_STEP"]
+
+#: Environment steps per global step (goal re-assignment and path re-planning period).
+GLOBAL_STEP = 3
 
 #: Terminal speed of MPE agents under a constant action (m/s): v = 0.75 v + 0.5.
 MAX_SPEED = PHYSICS["sensitivity"] * PHYSICS["dt"] / PHYSICS["mass"] / PHYSICS["damping"]
@@ -121,3 +124,11 @@ def _as_numpy(x, name):
     if x.ndim < 1 or x.shape[-1] != 2:
         raise ValueError(f"{name}: expected an array of 2-D vectors with shape (..., 2), got {x.shape}")
     return x
+
+
+def pad_paths(paths, P):
+    """Pad waypoint rows (B, N, p, 2) to length P by repeating each row's last point."""
+    if paths.shape[2] == P:
+        return paths
+    tail = np.repeat(paths[:, :, -1:], P - paths.shape[2], axis=2)
+    return np.concatenate([paths, tail], 2)

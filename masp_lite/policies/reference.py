@@ -22,7 +22,7 @@ import math
 
 import torch
 
-from ..algos.assignment import bottleneck, check_power, hungarian, hungarian_random_subset, sequential
+from ..algos.assignment import TEAM_PROTOCOLS, TeamAssignment, bottleneck, check_power, hungarian
 from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
 from ..planners.controllers import velocity_to_action  # the controller every planner shares
 
@@ -32,57 +32,6 @@ __all__ = ["RandomPolicy", "HungarianGreedy", "TeamAssignment", "TEAM_PROTOCOLS"
 
 COSTS = ("sum", "bottleneck")
 """What h-greedy's assignment minimises: the total of ``distance ** power``, or the longest trip."""
-
-TEAM_PROTOCOLS = ("resolve", "random_subset", "sequential")
-"""How an "(H)" method assigns goals once a team has shrunk (more landmarks than agents):
-``resolve`` — every global step over all unreached landmarks (h-greedy's default);
-``random_subset`` — every global step over a random subset of the unreached landmarks, as
-many as agents (the paper's section "Varying Team Sizes"; the planners' default);
-``sequential`` — once when the team shrinks, then a leftover landmark goes to an agent
-only when it has reached its own (the paper's section "Goal Matcher":
-:func:`~masp_lite.algos.assignment.sequential`)."""
-
-
-class TeamAssignment:
-    """The "(H)" goal assignment of a world batch under one of :data:`TEAM_PROTOCOLS`.
-
-    ``assign(obs, current)`` -> (B, N) goal indices. Before a team shrinks, and for fixed
-    teams, it is the plain assignment (over the unreached landmarks when the team can
-    change, since success counts landmarks ever reached); ``cost``/``power`` as h-greedy's.
-    """
-
-    def __init__(self, protocol: str, varying: bool, cost: str = "sum", power: float = 1.0, seed: int = 0):
-        if protocol not in TEAM_PROTOCOLS:
-            raise ValueError(f"team_protocol: expected one of {list(TEAM_PROTOCOLS)}, got {protocol!r}")
-        self.protocol, self.varying, self.cost, self.power, self.seed = protocol, varying, cost, power, seed
-        self.reset()
-
-    def reset(self) -> None:
-        self.generator = torch.Generator().manual_seed(self.seed)
-        self._sequential = None  # (B,) bool: worlds whose post-shrink assignment has been made
-
-    def _plain(self, obs, goal_mask):
-        if self.cost == "bottleneck":
-            return bottleneck(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask)
-        return hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask, self.power)
-
-    def assign(self, obs, current=None) -> torch.Tensor:
-        if not self.varying:
-            return self._plain(obs, None)
-        unreached = ~obs["reached"]
-        if self.protocol == "random_subset":
-            return hungarian_random_subset(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached,
-                                           generator=self.generator)
-        plain = self._plain(obs, unreached)
-        if self.protocol == "resolve":
-            return plain
-        shrunk = ~obs["alive"].all(-1)
-        started = shrunk & (torch.zeros_like(shrunk) if self._sequential is None else self._sequential)
-        self._sequential = shrunk
-        if current is None or not bool(started.any()):  # no world past its first post-shrink assignment
-            return plain  # the first assignment after the shrink is the plain one over the unreached
-        later = sequential(obs["agent_pos"], obs["landmark_pos"], obs["alive"], unreached, current)
-        return torch.where(started.unsqueeze(-1), later, plain)
 
 #: Terminal speed under a constant action: ``v = (1 - damping) v + s dt / m`` -> 2 m/s in MPE.
 MAX_SPEED = PHYSICS["sensitivity"] * PHYSICS["dt"] / PHYSICS["mass"] / PHYSICS["damping"]
@@ -237,7 +186,9 @@ def capt(world, global_step: int = 3) -> HungarianGreedy:
     """``h-capt``: h-greedy with the Hungarian assignment on squared distances.
 
     Turpin et al.'s goal assignment for interchangeable robots (CAPT, cited by the paper),
-    which minimises the sum of squared trips and so shortens the longest one."""
+    which minimises the sum of squared trips and so shortens the longest one. Particle worlds only."""
+    if getattr(getattr(world, "scenario", None), "kind", None) == "drone":
+        raise ValueError("h-capt: expected a particle world (mpe-*); on drones use h-greedy or h-bottleneck")
     return HungarianGreedy(world, global_step=global_step, power=2.0)
 
 
@@ -246,5 +197,9 @@ def min_max(world, global_step: int = 3) -> HungarianGreedy:
 
     Not in the paper: Steps waits for the last landmark, so the assignment whose longest
     trip is shortest (:func:`~masp_lite.algos.assignment.bottleneck`) bounds what any
-    goal assignment followed by straight lines can do."""
+    goal assignment followed by straight lines can do. A drone world is handed to
+    ``masp_lite.policies.drone_planners.DroneBottleneck`` (the same assignment, straight flights)."""
+    if getattr(getattr(world, "scenario", None), "kind", None) == "drone":
+        from .drone_planners import DroneBottleneck  # MuJoCo only when needed
+        return DroneBottleneck(world, global_step=global_step)
     return HungarianGreedy(world, global_step=global_step, cost="bottleneck")
