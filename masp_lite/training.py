@@ -49,7 +49,8 @@ from .evaluation import collision_rate, rollout, steps, success_rate
 from .policies.masp import METHOD_SETTINGS, VARIANTS, MASPPolicy
 from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256, trained_world
 
-__all__ = ["train", "parse_config", "method_config", "evaluate_nets", "checkpoint_iterations", "ship_run", "ship_zero_shot",
+__all__ = ["train", "parse_config", "method_config", "evaluate_nets", "checkpoint_iterations", "ship_run",
+           "ship_zero_shot",
            "CSV_FIELDS", "EVAL_SEED"]
 
 CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward",

@@ -76,7 +76,8 @@ def test_each_method_takes_only_its_own_weights(tmp_path):
         make_policy(name, world, checkpoint=str(path))
     with pytest.raises(ValueError, match="these are gm-mlp weights: use that method"):
         make_policy("masp", world, checkpoint=str(paths["gm-mlp"]))
-    with pytest.raises(ValueError, match="expected {'goal_matcher': 'random', 'executor': 'graph'}; these are masp weights"):
+    with pytest.raises(ValueError,
+                       match="expected {'goal_matcher': 'random', 'executor': 'graph'}; these are masp weights"):
         make_policy("masp-rg", world, checkpoint=str(paths["masp"]))
     with pytest.raises(ValueError, match="built for 5 agents .* evaluate it at N = 5 only"):
         make_policy("gm-mlp", make("mpe-20", num_envs=1, seed=0), checkpoint=str(paths["gm-mlp"]),

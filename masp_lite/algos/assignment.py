@@ -36,7 +36,8 @@ import torch
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-__all__ = ["hungarian", "hungarian_goals", "hungarian_random_subset", "bottleneck", "sequential", "assignment_cost", "distance_matrix",
+__all__ = ["hungarian", "hungarian_goals", "hungarian_random_subset", "bottleneck", "sequential", "assignment_cost",
+           "distance_matrix",
            "check_power", "TeamAssignment", "TEAM_PROTOCOLS"]
 
 

@@ -34,8 +34,8 @@ EXAMPLES = [
 
 def add_arguments(parser) -> None:
     parser.add_argument("--method", default=None, help="learned method to train: masp, an ablation (masp-rg, gm-mlp, "
-                        "cae-mlp) or a baseline (h-mappo, htamp, mage-x, mappo, darl1n); default: the one the --set values make, "
-                        "masp without any")
+                        "cae-mlp) or a baseline (h-mappo, htamp, mage-x, mappo, darl1n); default: the one the "
+                        "--set values make, masp without any")
     parser.add_argument("--scenario", required=True, help="particle scenario, e.g. mpe-20")
     parser.add_argument("--out", default=None, help="run folder (default runs/METHOD-SCENARIO-seedS)")
     parser.add_argument("--resume", action="store_true", help="continue the run saved in --out")

@@ -11,7 +11,8 @@ called as ``factory(world, **options)``; factories are named by ``"module:attrib
 strings and imported on first use, so a method's dependencies (MuJoCo, scipy's spatial
 code, the networks) load only when it is asked for. The methods live in this package:
 :mod:`.reference` (``random``, ``h-greedy``, ``h-capt``, ``h-bottleneck``), :mod:`.planners` (the "(H)" planners),
-:mod:`.drones` and :mod:`.drone_planners` (the drone versions of ``h-greedy`` and of the (H) planners) and :mod:`.masp` (``masp``, its ablations ``masp-rg``,
+:mod:`.drones` and :mod:`.drone_planners` (the drone versions of ``h-greedy`` and of the (H) planners)
+and :mod:`.masp` (``masp``, its ablations ``masp-rg``,
 ``gm-mlp``, ``cae-mlp``, and the RL baselines ``h-mappo``, ``htamp``, ``mage-x``, ``mappo``, ``darl1n``).
 """
 from __future__ import annotations

@@ -26,8 +26,8 @@ from ..nets.decoding import DECODERS, joint_argmax, random_goals, sequential_sam
 from ..nets.masp import MASPNets
 from ..weights import KEPT_DIR, load_weights
 
-__all__ = ["MASPPolicy", "ABLATIONS", "BASELINES", "VARIANTS", "METHOD_SETTINGS", "kept_weights", "masp_rg", "gm_mlp", "cae_mlp",
-           "h_mappo", "htamp", "mage_x", "mappo", "darl1n"]
+__all__ = ["MASPPolicy", "ABLATIONS", "BASELINES", "VARIANTS", "METHOD_SETTINGS", "kept_weights", "masp_rg", "gm_mlp",
+           "cae_mlp", "h_mappo", "htamp", "mage_x", "mappo", "darl1n"]
 
 #: The paper's ablations: method name -> the NetConfig settings its weights must have.
 ABLATIONS = {"masp-rg": {"goal_matcher": "random", "executor": "graph"},

@@ -22,7 +22,7 @@ import math
 
 import torch
 
-from ..algos.assignment import TEAM_PROTOCOLS, TeamAssignment, bottleneck, check_power, hungarian
+from ..algos.assignment import TEAM_PROTOCOLS, TeamAssignment, check_power
 from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
 from ..planners.controllers import velocity_to_action  # the controller every planner shares
 
