@@ -7,7 +7,7 @@ differs from MASP only where the paper says it does.
 
 * :class:`NearestMLP` (``executor="nearest"``, used by ``h-mappo``): an MLP over the
   ``neighbours`` nearest alive agents' pair features, nearest first — the MAPPO executor
-  without Group Information Fusion ("MLP over own state, goal and nearest neighbours");
+  without Group Information Fusion (an MLP over own state, goal and nearest neighbours);
   missing neighbours (a smaller or thinned team) read as an agent at the sensing edge.
 * :class:`AttentionSubgraph` (``executor="subgraph"``, used by ``mage-x``): MAGE-X's
   executor graph. Every other alive agent gets an attention score from its pair features
@@ -20,18 +20,18 @@ differs from MASP only where the paper says it does.
 
 The goal-free baselines (``goal_matcher="none"``: ``mappo``, ``darl1n``) have no goal to
 embed: each agent sees every landmark instead, through :class:`AttentionPool` over
-:func:`masp_lite.nets.masp.landmark_features` (MAPPO with "the attention mechanism", as the paper applies it),
-and the other agents through
+:func:`masp_lite.nets.masp.landmark_features` (MAPPO with "the attention mechanism", as the
+paper applies it), and the other agents through
 
 * :class:`AttentionPool` over all alive others' pair features (``executor="attention"``,
   ``mappo``), or
 * :class:`RadiusMean` (``executor="radius"``, ``darl1n``): the mean embedding of the agents
-  within 1 m (the pair features' sensing radius), DARL1N's one-hop neighbourhood; its critic sees no team-wide input
-  either (:meth:`masp_lite.nets.masp.MASPNets.cae_forward`).
+  within 1 m (the pair features' sensing radius), DARL1N's one-hop neighbourhood; its critic
+  sees that view and the time left, no team-wide input (:meth:`masp_lite.nets.masp.MASPNets.cae_forward`).
 
 Pair features are :func:`masp_lite.nets.masp.pair_features` (distance clipped at 1 m), so
 "nearest" ranks the agents within 1 m by distance; beyond it they all sit at the edge and
-the order among them is arbitrary but fixed (by index). Both modules serve any team size.
+the order among them is arbitrary but fixed (by index). Every module serves any team size.
 """
 from __future__ import annotations
 
