@@ -431,7 +431,8 @@ TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "per-step-time": t
 
 
 def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress: bool = False) -> list[dict]:
-    """Fresh records for ``table``'s cells: every registered method of its columns, shipped weights."""
+    """Fresh records for ``table``'s cells: every registered method of its columns, with the shipped
+    weights, or with every kept training seed where a column reads kept weights (the RL baselines)."""
     if table not in TABLES:
         raise ValueError(f"unknown table {table!r}; expected one of {list(TABLES)}")
     if table == "claims":  # every record the three tables read
@@ -453,9 +454,21 @@ def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress:
         return [evaluate(m, "mpe-50", episodes=episodes, seeds=list(seeds), num_envs=1, progress=progress)
                 for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
     scenarios = {"mpe": ("mpe-5", "mpe-20", "mpe-50"), "mpe-varying": ("mpe-20to10", "mpe-50to20")}[table]
-    methods = [m for m in _MPE_COLUMNS + _OURS_ONLY if m in METHODS]
-    return [evaluate(m, sc, episodes=episodes, seeds=list(seeds), progress=progress)
-            for sc in scenarios for m in methods]
+    columns = build(table, []).head[3:]  # the table's own columns, by label
+    label_to = {label: (m, kept) for label, m, kept in
+                _columns(_MPE_COLUMNS + _OURS_ONLY) + [("MASP (budget)", "masp", "masp-budget/")]}
+    runs = []
+    for sc in scenarios:
+        for m, kept in (label_to[c] for c in columns):
+            if m not in METHODS:
+                continue
+            if not kept:  # the shipped method
+                runs.append((m, sc, {}))
+                continue
+            for k in sorted((RESULTS_DIR / "training" / kept).glob(f"{base_scenario(sc)}-seed*.pt")):
+                runs.append((m, sc, {"checkpoint": f"results/training/{kept}{k.name}"}))  # kept training seeds
+    return [evaluate(m, sc, episodes=episodes, seeds=list(seeds), progress=progress, method_options=opts)
+            for m, sc, opts in runs]
 
 
 def build(name: str, records, latex: bool = False) -> Table:
