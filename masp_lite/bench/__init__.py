@@ -19,9 +19,11 @@ Without a target, every target present in this version runs with its defaults.
 from __future__ import annotations
 
 import importlib
+import json
+import os
 import time
 
-__all__ = ["TARGETS", "calls_per_second", "load_target"]
+__all__ = ["TARGETS", "calls_per_second", "load_target", "load_average", "write_json"]
 
 #: target -> one-line description
 TARGETS = {
@@ -42,6 +44,22 @@ def calls_per_second(fn, seconds: float, warmup: int = 3) -> float:
         fn()
         n += 1
     return n / elapsed
+
+
+def load_average() -> float | None:
+    """One-minute load average, rounded to 0.01 (None where the OS does not report it): every
+    target prints it, since other work on the machine inflates every timing."""
+    try:
+        return round(os.getloadavg()[0], 2)
+    except (AttributeError, OSError):
+        return None
+
+
+def write_json(path, result: dict, indent: int = 2) -> None:
+    """Write a target's numbers to ``path`` (its ``--json`` option)."""
+    with open(path, "w") as f:
+        json.dump(result, f, indent=indent)
+        f.write("\n")
 
 
 def load_target(name: str):

@@ -16,13 +16,12 @@ Training throughput is ``bench train``'s (:mod:`masp_lite.bench.train`).
 """
 from __future__ import annotations
 
-import json
-import os
 import time
 
 import torch
 
 from ..evaluation.paper import PAPER
+from . import load_average, write_json
 
 __all__ = ["add_arguments", "run", "decision_time", "PAPER_MS"]
 
@@ -80,15 +79,14 @@ def run(args) -> int:
         if getattr(args, name) < 1:
             raise ValueError(f"--{name.replace('_', '-')}: expected a positive int, got {getattr(args, name)}")
     torch.set_num_threads(args.threads)
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    load = load_average()
     res = {"threads": args.threads, "load_average_1min": load, "decide": decision_time(args.agents)}
     d = res["decide"]
     print(f"MASP decision time, {d['agents']} agents, CPU, {args.threads} threads ({d['weights']}):")
     print(f"  {d['ms_per_step']:.2f} ms per step (executor-only steps {d['ms_executor_only_steps']:.2f} ms, "
           f"Goal Matcher steps {d['ms_goal_matcher_steps']:.2f} ms); paper: {PAPER_MS:.0f} ms")
     print(f"  process CPU time {d['cpu_ms_per_step']:.2f} ms per step (all threads; less sensitive to other load)")
-    print(f"(1-minute load average at start: {load:.1f}; other work on the machine inflates these times)")
+    print(f"(1-minute load average at start: {load}; other work on the machine inflates these times)")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(res, f, indent=2)
+        write_json(args.json, res)
     return 0

@@ -21,14 +21,13 @@ Options: ``--seconds``, ``--rounds``, ``--worlds``, ``--threads``, ``--json PATH
 from __future__ import annotations
 
 import argparse
-import json
 
 import mujoco
 import torch
 
 from ..envs.drone_model import HOVER_COMMAND, SUBSTEPS
 from ..envs.drones import DroneWorld
-from . import calls_per_second
+from . import calls_per_second, write_json
 
 SCENARIO = "drone-20"
 
@@ -85,7 +84,5 @@ def run(args: argparse.Namespace) -> int:
     worst = max(r["overhead"] for r in rows)
     print(f"overhead vs raw mj_step: worst {worst:.2f}x (target <= 1.5x)")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump({"scenario": SCENARIO, "substeps": SUBSTEPS, "threads": args.threads, "results": rows}, f,
-                      indent=2)
+        write_json(args.json, {"scenario": SCENARIO, "substeps": SUBSTEPS, "threads": args.threads, "results": rows})
     return 0

@@ -30,14 +30,13 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import json
 import os
 import statistics
 
 import torch
 
 from ..envs.particle import NUM_ACTIONS, ParticleWorld
-from . import calls_per_second
+from . import calls_per_second, load_average, write_json
 
 SCENARIO = "mpe-50"
 RATIO_AT = 64  # the batch size at which masp-lite is compared with mpe2
@@ -110,14 +109,6 @@ def measure_mpe2(seconds: float, num_agents: int = 50, horizon: int = 90, seed: 
     return rate * num_agents
 
 
-def _load() -> float | None:
-    """One-minute load average (None where the OS does not report it)."""
-    try:
-        return round(os.getloadavg()[0], 2)
-    except (AttributeError, OSError):
-        return None
-
-
 def run(args: argparse.Namespace) -> int:
     if not args.seconds > 0:
         raise ValueError(f"--seconds: expected a positive number, got {args.seconds}")
@@ -126,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     if any(b < 1 for b in args.worlds):
         raise ValueError(f"--worlds: expected positive ints, got {args.worlds}")
     torch.set_num_threads(args.threads)
-    load_before = _load()
+    load_before = load_average()
     print(f"bench env: {SCENARIO} (50 agents, 30 obstacles), random actions, resets included, "
           f"{args.threads} thread(s), {args.seconds:g} s per measurement in {args.rounds} round(s), "
           f"{os.cpu_count()} CPU(s), load average {load_before}")
@@ -160,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  mpe2 simple_spread_v3 (1 episode) {ref:>14,.0f} agent-steps/s")
         ratio = statistics.median(m / q for m, q in zip(masp_rounds[base], ref_rounds))
         print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x (median over rounds)")
-    load_after = _load()
+    load_after = load_average()
     print(f"  load average after: {load_after}")
     if args.json:
         result = {"target": "env", "scenario": SCENARIO, "num_agents": 50, "resets": "included",
@@ -172,7 +163,6 @@ def run(args: argparse.Namespace) -> int:
                   "ratio": None if ratio is None else {"worlds": base, "value": ratio},
                   "torchrl_agent_steps_per_s": trl,
                   "torchrl_overhead": None if overhead is None else {"worlds": base, "value": overhead}}
-        with open(args.json, "w") as f:
-            json.dump(result, f, indent=2)
+        write_json(args.json, result)
         print(f"  wrote {args.json}")
     return 0

@@ -20,7 +20,6 @@ them, and figures measured while other processes compete for the cores are infla
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 
@@ -30,6 +29,7 @@ import torch
 from ..envs import get_scenario, make
 from ..evaluation.paper import PAPER
 from ..policies import get_factory, make_policy, method_options
+from . import load_average, write_json
 
 __all__ = ["add_arguments", "run", "step_times", "collision_split", "PAPER_MS"]
 
@@ -92,11 +92,11 @@ def collision_split(method: str, scenario: str = "mpe-20", episodes: int = 20, s
 
 def run(args: argparse.Namespace) -> int:
     torch.set_num_threads(max(1, int(args.threads)))
-    load0 = os.getloadavg()[0]
+    load0 = load_average()
     rows, record = [], {"scenario": args.scenario, "world": get_scenario(args.scenario).world,
                         "episodes": args.episodes, "threads": args.threads}
     print(f"planning time per step, {args.scenario}, one world, {args.episodes} episode(s); "
-          f"load average {load0:.2f} on {os.cpu_count()} cores")
+          f"load average {load0} on {os.cpu_count()} cores")
     print(f"{'method':<11} {'ours ms':>14} {'paper ms':>10} {'paper/ours':>11}")
     for m in args.methods:
         t0 = time.perf_counter()
@@ -108,8 +108,8 @@ def run(args: argparse.Namespace) -> int:
               f"   [{time.perf_counter() - t0:.0f} s]", flush=True)
         record[m] = {"ms": {"mean": mean, "std": std}, "paper_ms": paper[0] if paper else None}
         rows.append(m)
-    record["load_average"] = [load0, os.getloadavg()[0]]
-    print(f"load average after: {record['load_average'][1]:.2f} (timings under load are inflated)")
+    record["load_average"] = [load0, load_average()]
+    print(f"load average after: {record['load_average'][1]} (timings under load are inflated)")
     if args.split:
         print(f"\ncollisions per step on {args.split_scenario} ({args.split_episodes} episodes)")
         print(f"{'method':<11} {'CR':>7} {'agent-agent':>12} {'agent-obst':>11} {'obst share':>11}")
@@ -120,6 +120,5 @@ def run(args: argparse.Namespace) -> int:
             print(f"{m:<11} {s['cr']:>7.3f} {s['agent_agent']:>12.3f} {s['agent_obstacle']:>11.3f} "
                   f"{s['obstacle_share']:>10.0%}", flush=True)
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(record, f, indent=1)
+        write_json(args.json, record, indent=1)
     return 0

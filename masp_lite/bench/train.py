@@ -17,8 +17,6 @@ the output prints the load average.
 from __future__ import annotations
 
 import contextlib
-import json
-import os
 import time
 
 import torch
@@ -26,6 +24,7 @@ import torch
 from ..config import FROM_SCRATCH, TrainConfig
 from ..nets.encoders import plain_autograd
 from ..policies.masp import BASELINES, METHOD_SETTINGS
+from . import load_average, write_json
 
 __all__ = ["add_arguments", "run", "throughput", "METHODS"]
 
@@ -68,7 +67,7 @@ def run(args) -> int:
         if get_scenario(sc).kind != "particle":
             raise ValueError(f"--scenarios: {sc!r} is not a particle scenario; training runs on mpe-*")
     torch.set_num_threads(args.threads)
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    load = load_average()
     print(f"training throughput, env steps/s ({args.worlds} worlds, {args.threads} threads, "
           f"{args.iterations} timed iteration(s) after one warm-up)")
     res = {"worlds": args.worlds, "threads": args.threads, "iterations": args.iterations,
@@ -85,8 +84,7 @@ def run(args) -> int:
             extra = [f"x masp {sps / masp:.2f}" if masp and name != "masp" else "",
                      f"x plain {sps / plain:.2f}" if plain and name == "masp" else ""]
             print(f"  {name:<24} {sps:8.1f}   {'  '.join(e for e in extra if e)}")
-    print(f"(1-minute load average at start: {load:.1f}; other work on the machine slows every row)")
+    print(f"(1-minute load average at start: {load}; other work on the machine slows every row)")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(res, f, indent=2)
+        write_json(args.json, res)
     return 0
