@@ -8,7 +8,8 @@ same run*, so that the ratio compares like with like on whatever machine runs it
 TorchRL is installed (``pip install masp-lite[torchrl]``), the TorchRL face
 (:class:`~masp_lite.envs.torchrl.ParticleTorchRLEnv`) is measured too, at the batch size of
 the ratio, through ``step_and_maybe_reset`` as TorchRL's collectors step it (observations,
-rewards, metrics and auto-resets included); its overhead is native / TorchRL agent-steps/s.
+rewards, metrics and auto-resets included); its overhead is its time per step over the native
+world's, both timed in alternating blocks of 10 steps in the same process (:func:`measure_torchrl`).
 
 What is counted: one agent-step is one agent advanced by one environment step
 (``steps × worlds × agents``). Episode resets **are included** in the timed loop (a world
@@ -32,6 +33,7 @@ import argparse
 import importlib.util
 import os
 import statistics
+import time
 
 import torch
 
@@ -66,24 +68,46 @@ def measure_masp(num_envs: int, seconds: float, seed: int = 0) -> float:
     return calls_per_second(one_step, seconds) * num_envs * world.num_agents
 
 
-def measure_torchrl(num_envs: int, seconds: float, seed: int = 0) -> float | None:
-    """Agent-steps/s of the TorchRL face over ``num_envs`` mpe-50 worlds, random actions and
-    auto-resets through ``step_and_maybe_reset``; None without TorchRL."""
+def measure_torchrl(num_envs: int, seconds: float, seed: int = 0, block: int = 10) -> tuple[float, float] | None:
+    """(agent-steps/s of the TorchRL face, its overhead) over ``num_envs`` mpe-50 worlds; None without TorchRL.
+
+    The face steps through ``step_and_maybe_reset`` (random actions, auto-resets), a native world of
+    the same size through ``step`` and ``reset``; the two alternate in blocks of ``block`` steps for
+    ``seconds`` of wall time, and the overhead is the ratio of their median block times, so that
+    other work on the machine slows both sides of a pair alike."""
     if importlib.util.find_spec("torchrl") is None:
         return None
     from ..envs.torchrl import ParticleTorchRLEnv
 
     env = ParticleTorchRLEnv(SCENARIO, num_envs=num_envs, seed=seed)
+    world = ParticleWorld(SCENARIO, num_envs=num_envs, seed=seed)
     gen = torch.Generator().manual_seed(seed)
     shape = (num_envs, env.num_agents)
     td = env.reset()
 
-    def one_step():
+    def face_step():
         nonlocal td
         td.set(("agents", "action"), torch.randint(0, NUM_ACTIONS, shape, generator=gen))
         _, td = env.step_and_maybe_reset(td)
 
-    return calls_per_second(one_step, seconds) * num_envs * env.num_agents
+    def native_step():
+        world.step(torch.randint(0, NUM_ACTIONS, shape, generator=gen))
+        if bool(world.done.any()):
+            world.reset()
+
+    def timed(fn):
+        start = time.perf_counter()
+        for _ in range(block):
+            fn()
+        return (time.perf_counter() - start) / block
+
+    timed(face_step), timed(native_step)  # warm-up
+    face, native, start = [], [], time.perf_counter()
+    while time.perf_counter() - start < seconds or not face:
+        face.append(timed(face_step))
+        native.append(timed(native_step))
+    face_time = statistics.median(face)
+    return num_envs * env.num_agents / face_time, face_time / statistics.median(native)
 
 
 def measure_mpe2(seconds: float, num_agents: int = 50, horizon: int = 90, seed: int = 0) -> float | None:
@@ -138,11 +162,11 @@ def run(args: argparse.Namespace) -> int:
     if trl_rounds[0] is None:
         print("  TorchRL not installed: no TorchRL-face measurement")
     else:
-        trl = statistics.median(trl_rounds)
-        overhead = statistics.median(m / t for m, t in zip(masp_rounds[base], trl_rounds))
+        trl = statistics.median(t for t, _ in trl_rounds)
+        overhead = statistics.median(o for _, o in trl_rounds)
         print(f"  TorchRL face {base:>3} world(s)      {trl:>14,.0f} agent-steps/s")
         print(f"  overhead of the TorchRL face at {base} worlds: {overhead:.2f}x the native world's time "
-              "(median over rounds)")
+              "(blocks of steps alternating with a native world, median over rounds)")
     ref = ratio = None
     if ref_rounds[0] is None:
         print("  mpe2 not installed: no reference measurement")

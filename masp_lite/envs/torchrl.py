@@ -220,7 +220,10 @@ class ParticleTorchRLEnv(EnvBase):
     def _reward(self, dist2: torch.Tensor, contacts: torch.Tensor) -> torch.Tensor:
         """(B, N): simple_spread's reward of every agent (module docstring), from the squared
         agent-landmark distances of :meth:`_observation` (the world's precision)."""
-        nearest = torch.where(self.world.alive.unsqueeze(-1), dist2, torch.inf).amin(dim=1).sqrt()
+        alive = self.world.alive
+        if not bool(alive.all()):  # dropped agents cover nothing
+            dist2 = torch.where(alive.unsqueeze(-1), dist2, torch.inf)
+        nearest = dist2.amin(dim=1).sqrt()
         team = -nearest.sum(dim=-1, keepdim=True)
         return (1 - LOCAL_RATIO) * team - LOCAL_RATIO * contacts
 
