@@ -176,7 +176,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
     if resume:
         state = _load_state(state_path)
         saved = dict(state.get("config", {}))
-        now = cfg.flat()
+        now = trainer.cfg.flat()  # as the trainer resolved it (an mlp variant's team size)
         defaults = TrainConfig().flat()  # a field added since the state was saved has its default
         diff = sorted(k for k in now if k != "updates" and saved.get(k, defaults[k]) != now[k])
         if state.get("scenario") != trainer.world.scenario.name or state.get("overrides", {}) != (overrides or {}):

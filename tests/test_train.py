@@ -58,6 +58,16 @@ def test_interrupted_and_resumed_run_ends_with_the_same_parameters(tmp_path):
     assert m["seed"] == 3 and m["scenario"] == "mpe-5" and m["wall_clock_s"] > 0 and m["config"]["updates"] == 4
 
 
+def test_a_fixed_size_variant_resumes(tmp_path):
+    """An mlp variant's state records the team size the trainer set; resuming with the same settings works."""
+    cfg = MAPPOConfig(**{**TINY, "updates": 2, "goal_matcher": "mlp", "executor": "mlp"})
+    with pytest.raises(Killed):
+        train("mpe-5", cfg, tmp_path / "cut", progress=False, on_iteration=_kill_at(2))
+    m = train("mpe-5", MAPPOConfig(**{**TINY, "updates": 3, "goal_matcher": "mlp", "executor": "mlp"}),
+              tmp_path / "cut", resume=True, progress=False)
+    assert m["env_steps"] == 3 * 3 * 18
+
+
 def test_ctrl_c_during_train_keeps_the_checkpoint_and_prints_the_resume_command(tmp_path, capsys):
     """A real SIGINT to a tiny ``train`` in a subprocess, once its first checkpoint is written."""
     root = Path(__file__).resolve().parents[1]
