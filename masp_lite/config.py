@@ -30,7 +30,8 @@ GM_REFERENCES = ("distance", "squared", "bottleneck")
 """The settings of :attr:`RewardConfig.gm_reference`."""
 GOAL_MATCHERS = ("graph", "mlp", "random", "hungarian", "none")
 EXECUTORS = ("graph", "mlp", "nearest", "subgraph", "attention", "radius")
-"""The settings of :attr:`NetConfig.goal_matcher` and :attr:`NetConfig.executor`."""
+ACTIONS = ("discrete", "throttle", "velocity")
+"""The settings of :attr:`NetConfig.goal_matcher`, :attr:`NetConfig.executor` and :attr:`NetConfig.action`."""
 
 
 def _check(obj, name, low=None, high=None, integer=False):
@@ -74,6 +75,13 @@ class NetConfig:
     team_size: int = 0
     """Agents an ``mlp`` variant is built for (its input size is fixed); 0 for the graph networks,
     which serve any team size. Training sets it to the scenario's team size."""
+    action: str = "discrete"
+    """What the executor outputs, and so which world the networks are for: ``discrete``, one of
+    MPE's 5 actions (particle worlds); ``throttle``, the 4 motor commands of a drone (the paper's
+    drone action), or ``velocity``, a velocity set-point the geometric controller flies (the
+    variant ``masp-velocity``); both drone actions are Gaussian (:mod:`masp_lite.nets.drones`)."""
+    log_std_init: float = -1.6
+    """Initial log standard deviation of the drone executor's Gaussian (per action dimension)."""
 
     def __post_init__(self):
         for name in ("width", "gcn_layers", "obstacles_seen", "global_step", "neighbours_seen"):
@@ -84,11 +92,23 @@ class NetConfig:
             raise ValueError(f"goal_matcher: expected one of {list(GOAL_MATCHERS)}, got {self.goal_matcher!r}")
         if self.executor not in EXECUTORS:
             raise ValueError(f"executor: expected one of {list(EXECUTORS)}, got {self.executor!r}")
+        if self.action not in ACTIONS:
+            raise ValueError(f"action: expected one of {list(ACTIONS)}, got {self.action!r}")
+        if self.action != "discrete" and (self.goal_matcher not in ("graph", "hungarian") or self.executor != "graph"):
+            raise ValueError(f"action {self.action!r} (drones): expected goal_matcher 'graph' or 'hungarian' and "
+                             f"executor 'graph', got {self.goal_matcher!r} and {self.executor!r}")
+        if not isinstance(self.log_std_init, (int, float)) or not -10 <= self.log_std_init <= 2:
+            raise ValueError(f"log_std_init: expected a number in [-10, 2], got {self.log_std_init!r}")
 
     @property
     def fixed_size(self) -> bool:
         """Whether a network takes a fixed number of agents (an ``mlp`` variant)."""
         return "mlp" in (self.goal_matcher, self.executor)
+
+    @property
+    def world(self) -> str:
+        """``"particle"`` or ``"drone"``: the world kind these networks act in (from :attr:`action`)."""
+        return "particle" if self.action == "discrete" else "drone"
 
 
 @dataclass

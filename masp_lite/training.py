@@ -42,10 +42,12 @@ from pathlib import Path
 
 import torch
 
+from .algos.drone_trainer import DroneMASPTrainer
 from .algos.masp_trainer import MASPTrainer
 from .config import TrainConfig, field_types, parse_sets
-from .envs import OVERRIDES, Scenario, make
+from .envs import OVERRIDES, Scenario, get_scenario, make
 from .evaluation import collision_rate, rollout, steps, success_rate
+from .policies.drone_masp import DRONE_METHODS, DroneMASPPolicy
 from .policies.masp import METHOD_SETTINGS, VARIANTS, MASPPolicy
 from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256, trained_world
 
@@ -68,6 +70,8 @@ def method_config(method: str | None, sets=(), scenario: str | None = None) -> t
     default. One clear error for a method that is not trained here, a ``--set`` that would
     make it another method, or a scenario the trainer does not run (drones).
     """
+    if scenario is not None and get_scenario(scenario).kind == "drone":
+        return _drone_method_config(method, sets, scenario)
     if method is None:
         cfg, _ = parse_config(sets)
         got = {k: getattr(cfg.net, k) for k in ("goal_matcher", "executor")}
@@ -78,16 +82,30 @@ def method_config(method: str | None, sets=(), scenario: str | None = None) -> t
         method = match[0]
     if method not in METHOD_SETTINGS:
         raise ValueError(f"train: {method!r} is not a method trained here; expected one of {sorted(METHOD_SETTINGS)}")
-    if scenario is not None:
-        from .envs import get_scenario
-        if get_scenario(scenario).kind != "particle":
-            raise ValueError(f"train --method {method}: expected a particle scenario (mpe-*), got {scenario!r}")
+    if "action" in dict(s.split("=", 1) for s in sets if "=" in s):
+        raise ValueError("train: --set action is for drone scenarios (drone-*); particle networks take MPE's "
+                         "discrete actions")
     own = METHOD_SETTINGS[method]
     cfg, overrides = parse_config([f"{k}={v}" for k, v in own.items()] + list(sets))
     for k in VARIANTS[method]:
         if getattr(cfg.net, k) != own[k]:
             raise ValueError(f"train --method {method}: {k} is {own[k]!r} for this method; --set {k}="
                              f"{getattr(cfg.net, k)} makes another one (see masp_lite.policies.masp.VARIANTS)")
+    return method, cfg, overrides
+
+
+def _drone_method_config(method, sets, scenario) -> tuple[str, TrainConfig, dict]:
+    """:func:`method_config` for a drone scenario: ``masp`` (motor commands) or ``masp-velocity``."""
+    given = dict(s.split("=", 1) for s in sets if "=" in s)
+    if method is None:
+        method = "masp-velocity" if given.get("action") == "velocity" else "masp"
+    if method not in DRONE_METHODS:
+        raise ValueError(f"train --method {method}: drone scenarios ({scenario!r}) train {sorted(DRONE_METHODS)}")
+    action = DRONE_METHODS[method]
+    if given.get("action", action) != action:
+        raise ValueError(f"train --method {method}: action is {action!r} for this method; --set action="
+                         f"{given['action']} makes another one ({sorted(DRONE_METHODS)})")
+    cfg, overrides = parse_config([f"action={action}", *sets])
     return method, cfg, overrides
 
 
@@ -104,7 +122,8 @@ def evaluate_nets(nets, scenario, overrides=None, episodes: int = 32, seed: int 
     world = make(scenario, num_envs=min(episodes, 100), seed=seed, **(overrides or {}))
     was = nets.training
     nets.eval()
-    log, dt = rollout(world, MASPPolicy.from_nets(world, nets, seed=seed), episodes, seed)
+    cls = DroneMASPPolicy if nets.config.world == "drone" else MASPPolicy
+    log, dt = rollout(world, cls.from_nets(world, nets, seed=seed), episodes, seed)
     nets.train(was)
     return {"sr": float(success_rate(log).mean()), "steps": float(steps(log).mean()),
             "cr": float(collision_rate(log).mean()), "decision_ms": dt * 1e3}
@@ -169,7 +188,8 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         raise ValueError(f"--resume: expected a training state at {state_path}, found none")
     if not resume and state_path.exists():
         raise ValueError(f"{state_path} exists; pass --resume to continue it or choose another --out")
-    trainer = MASPTrainer(scenario, cfg, seed=seed, overrides=overrides)
+    kind = get_scenario(scenario).kind if isinstance(scenario, str) else scenario.kind
+    trainer = (DroneMASPTrainer if kind == "drone" else MASPTrainer)(scenario, cfg, seed=seed, overrides=overrides)
     wall_before, rows, started = 0.0, [], datetime.now(timezone.utc).isoformat(timespec="seconds")
     default_command = f"python -m masp_lite train --method {method} --scenario {scenario} --seed {seed}"
     first_command = None

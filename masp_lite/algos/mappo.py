@@ -26,6 +26,7 @@ import torch
 from torch import nn
 
 from ..config import PPOConfig
+from ..nets.drones import gaussian_entropy, gaussian_log_prob
 
 __all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage",
            "ppo_update"]
@@ -144,12 +145,15 @@ class RolloutStorage:
 
 
 def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: PPOConfig,
-               value_norm: ValueNorm, generator: torch.Generator, epochs: int | None = None) -> dict[str, float]:
+               value_norm: ValueNorm, generator: torch.Generator, epochs: int | None = None,
+               distribution: str = "categorical") -> dict[str, float]:
     """Run PPO on one level's rollout; returns mean ``policy_loss``, ``value_loss``, ``entropy``.
 
     ``data`` (T, B, ...) must hold ``actions``, ``logp``, ``values`` (normalised critic
     outputs at collection), ``returns`` (raw), ``advantages`` and ``mask`` (alive agents).
-    ``evaluate(minibatch) -> (logits, values)`` recomputes the networks on a minibatch.
+    ``evaluate(minibatch) -> (logits, values)`` recomputes the networks on a minibatch;
+    with ``distribution="gaussian"`` (the drone executor) it returns ``((mean, log_std), values)``
+    and ``actions`` are the unclipped samples (:func:`~masp_lite.nets.drones.gaussian_log_prob`).
     Advantages are standardised over the alive agents of the whole rollout. ``epochs``
     overrides ``cfg.ppo_epochs``.
     """
@@ -163,10 +167,15 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
     params = list(actor.parameters()) + list(critic.parameters())
     for _ in range(cfg.ppo_epochs if epochs is None else epochs):
         for mb in RolloutStorage.minibatches(data, cfg.num_minibatches, generator):
-            logits, values = evaluate(mb)
-            logp_all = torch.log_softmax(logits, dim=-1)
-            logp = torch.gather(logp_all, -1, mb["actions"].unsqueeze(-1)).squeeze(-1)
-            entropy = _mean(-(logp_all.exp() * logp_all).sum(-1), mb["mask"])
+            out, values = evaluate(mb)
+            if distribution == "gaussian":
+                mean, log_std = out
+                logp = gaussian_log_prob(mean, log_std, mb["actions"])
+                entropy = _mean(gaussian_entropy(log_std, logp.shape), mb["mask"])
+            else:
+                logp_all = torch.log_softmax(out, dim=-1)
+                logp = torch.gather(logp_all, -1, mb["actions"].unsqueeze(-1)).squeeze(-1)
+                entropy = _mean(-(logp_all.exp() * logp_all).sum(-1), mb["mask"])
             pl = clipped_surrogate(logp, mb["logp"], mb["advantages"], cfg.clip, mb["mask"])
             vl = value_loss(values, mb["values"], mb["targets"], cfg.clip, cfg.huber_delta, mb["mask"])
             loss = pl + cfg.value_coef * vl - cfg.entropy_coef * entropy

@@ -44,6 +44,7 @@ import torch
 from ..config import TrainConfig
 from ..envs import make
 from ..nets.decoding import conditional_logits, random_goals, sequential_sample
+from ..nets.drones import DroneNets
 from ..nets.masp import MASPNets
 from .assignment import hungarian_goals
 from .mappo import RolloutStorage, ValueNorm, gae, ppo_update
@@ -65,12 +66,16 @@ def sample(logits: torch.Tensor, generator: torch.Generator):
 class MASPTrainer:
     """MASP on one scenario: ``iteration()`` = one rollout + one update of both levels."""
 
+    distribution = "categorical"  # of the executor's actions (the drone trainer's are Gaussian)
+
     def __init__(self, scenario: str, cfg: TrainConfig, seed: int = 0, overrides: dict | None = None):
         self.cfg, self.seed = cfg, int(seed)
         self.world = make(scenario, num_envs=cfg.run.num_envs, seed=self.seed, **(overrides or {}))
         sc = self.world.scenario
-        if sc.kind != "particle":
-            raise ValueError(f"masp training: expected a particle scenario, got {sc.name!r}")
+        if sc.kind != cfg.net.world:
+            hint = "; drones need --set action=throttle (or velocity)" if sc.kind == "drone" else ""
+            raise ValueError(f"masp training: the networks (action {cfg.net.action!r}) are for {cfg.net.world} worlds, "
+                             f"the scenario {sc.name!r} is a {sc.kind} world{hint}")
         self.scale, self.horizon, self.reach = sc.world_size / 2, sc.horizon, sc.reach_distance
         if cfg.net.fixed_size:  # an mlp variant: built for this team size
             if cfg.net.team_size not in (0, self.world.num_agents):
@@ -83,7 +88,7 @@ class MASPTrainer:
         self.goal_free = cfg.net.goal_matcher == "none"
         self.gm_trained = not (self.random_goals or self.hungarian_goals or self.goal_free)
         torch.manual_seed(self.seed)  # network initialisation
-        self.nets = MASPNets(cfg.net)
+        self.nets = (DroneNets if sc.kind == "drone" else MASPNets)(cfg.net)
         n = self.nets
         self.gm_opt = torch.optim.Adam([*n.gm.parameters(), *n.gm_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5)
         self.cae_opt = torch.optim.Adam([*n.cae.parameters(), *n.cae_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5)
@@ -185,7 +190,7 @@ class MASPTrainer:
                               self.generator, epochs=cfg.ppo.gm_ppo_epochs)
         if cfg.run.train_executor:
             s_cae = ppo_update(cae_data, self._cae_eval, n.cae, n.cae_critic, self.cae_opt, cfg.ppo, self.cae_norm,
-                               self.generator)
+                               self.generator, distribution=self.distribution)
         else:  # executor frozen (Goal Matcher fine-tuning): nothing to report
             s_cae = dict(nothing)
         self.iterations += 1

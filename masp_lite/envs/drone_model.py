@@ -48,10 +48,11 @@ import math
 
 import mujoco
 import numpy as np
+import torch
 
 __all__ = ["HUMMINGBIRD", "ARM_LENGTH", "ROTOR_RADIUS", "COLLISION_RADIUS", "CONTROL_DT",
            "PHYSICS_DT", "SUBSTEPS", "MAX_THRUST", "HOVER_COMMAND", "build_xml", "build_model",
-           "save_xml", "rotor_positions", "GRAVITY"]
+           "save_xml", "rotor_positions", "GRAVITY", "quat_to_matrix"]
 
 #: The Hummingbird's constants (OmniDrones ``hummingbird.yaml``).
 HUMMINGBIRD = dict(
@@ -79,6 +80,15 @@ def rotor_positions() -> np.ndarray:
     """(4, 2) rotor x, y in the body frame, from the arm length and the "+" layout angles."""
     a = np.asarray(HUMMINGBIRD["rotor_angles"])
     return ARM_LENGTH * np.stack([np.cos(a), np.sin(a)], axis=1)
+
+
+def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
+    """Rotation matrices (..., 3, 3) from unit quaternions (..., 4) in MuJoCo's (w, x, y, z)."""
+    w, x, y, z = q.unbind(-1)
+    return torch.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1).reshape(*q.shape[:-1], 3, 3)
 
 
 def _drone(i: int) -> str:

@@ -61,6 +61,8 @@ same, bit for bit). ``python -m masp_lite bench drones`` measures the overhead a
 """
 from __future__ import annotations
 
+import json
+
 import mujoco
 import mujoco.batch
 import numpy as np
@@ -373,6 +375,19 @@ class DroneWorld(BatchedWorld):
         if "not_done" not in ev:
             ev["not_done"] = self._tensor(np.zeros(self.num_envs, bool))
         return ev
+
+    def get_rng_state(self) -> torch.Tensor:
+        """State of the world's own numpy generator (spawns, team changes) as a uint8 tensor (its JSON),
+        for exact resumes; checkpoints hold it as a plain tensor."""
+        text = json.dumps(self._rng.bit_generator.state)
+        return torch.tensor(list(text.encode()), dtype=torch.uint8)
+
+    def set_rng_state(self, state: torch.Tensor) -> None:
+        """Restore a state from :meth:`get_rng_state`."""
+        try:
+            self._rng.bit_generator.state = json.loads(bytes(state.tolist()).decode())
+        except (ValueError, TypeError, KeyError) as e:
+            raise ValueError(f"set_rng_state: expected a state from DroneWorld.get_rng_state ({e})") from None
 
     def get_data(self, env: int = 0) -> mujoco.MjData:
         """A new ``MjData`` of ``self.model`` holding episode ``env``'s physics state (run

@@ -61,28 +61,30 @@ def _clip(rel: torch.Tensor, radius: float) -> tuple[torch.Tensor, torch.Tensor]
     return rel * (radius / d.clamp(min=radius)), d
 
 
-def pair_features(pos: torch.Tensor, vel: torch.Tensor) -> torch.Tensor:
-    """(B, N, N, 6): agent ``j`` seen from agent ``k`` at ``[b, k, j]``.
+def pair_features(pos: torch.Tensor, vel: torch.Tensor, sense: float = SENSE, max_speed: float = MAX_SPEED
+                  ) -> torch.Tensor:
+    """(B, N, N, 2D + 2): agent ``j`` seen from agent ``k`` at ``[b, k, j]``, in D = 2 or 3 dimensions.
 
-    ``[rel / SENSE (2, clipped to norm 1), min(dist, SENSE) / SENSE, (v_j - v_k) / MAX_SPEED (2),
-    is_self]``.
+    ``[rel / sense (D, clipped to norm 1), min(dist, sense) / sense, (v_j - v_k) / max_speed (D),
+    is_self]``; the drones pass their own ``sense`` and ``max_speed`` (:mod:`masp_lite.nets.drones`).
     """
-    rel, d = _clip(pos.unsqueeze(1) - pos.unsqueeze(2), SENSE)
-    dv = (vel.unsqueeze(1) - vel.unsqueeze(2)) / MAX_SPEED
+    rel, d = _clip(pos.unsqueeze(1) - pos.unsqueeze(2), sense)
+    dv = (vel.unsqueeze(1) - vel.unsqueeze(2)) / max_speed
     N = pos.shape[1]
     eye = torch.eye(N, dtype=pos.dtype, device=pos.device).expand(*pos.shape[:1], N, N).unsqueeze(-1)
-    return torch.cat([rel / SENSE, d.clamp(max=SENSE) / SENSE, dv, eye], dim=-1)
+    return torch.cat([rel / sense, d.clamp(max=sense) / sense, dv, eye], dim=-1)
 
 
-def goal_features(pos: torch.Tensor, vel: torch.Tensor, goal_pos: torch.Tensor) -> torch.Tensor:
-    """(B, N, 6): each agent's assigned goal ``goal_pos`` (B, N, 2) seen from the agent.
+def goal_features(pos: torch.Tensor, vel: torch.Tensor, goal_pos: torch.Tensor, max_speed: float = MAX_SPEED
+                  ) -> torch.Tensor:
+    """(B, N, 2D + 2): each agent's assigned goal ``goal_pos`` (B, N, D) seen from the agent.
 
-    ``[unit direction (2), min(dist, 1 m), log(1 + dist), own velocity / MAX_SPEED (2)]``.
+    ``[unit direction (D), min(dist, 1 m), log(1 + dist), own velocity / max_speed (D)]``.
     """
     rel = goal_pos - pos
     d = rel.norm(dim=-1, keepdim=True)
     unit = rel / d.clamp(min=1e-6)
-    return torch.cat([unit, d.clamp(max=1.0), torch.log1p(d), vel / MAX_SPEED], dim=-1)
+    return torch.cat([unit, d.clamp(max=1.0), torch.log1p(d), vel / max_speed], dim=-1)
 
 
 def landmark_features(pos: torch.Tensor, vel: torch.Tensor, landmark_pos: torch.Tensor,
@@ -130,15 +132,15 @@ def global_features(obs: dict, horizon: int) -> torch.Tensor:
     return torch.cat([cov, rea, left], dim=-1).unsqueeze(1).expand(-1, obs["alive"].shape[1], -1)
 
 
-def gm_inputs(obs: dict, scale: float):
-    """Goal Matcher inputs: agent nodes (B, N, 5), goal nodes (B, M, 4), pair distances (B, N, M, 2).
+def gm_inputs(obs: dict, scale: float, max_speed: float = MAX_SPEED):
+    """Goal Matcher inputs: agent nodes (B, N, 2D + 1), goal nodes (B, M, D + 2), pair distances (B, N, M, 2).
 
     Pair ``(k, j)``: ``[D_kj, D_kj - min_i D_ij]`` — the L2 distance of eq. 4 and how much
     farther agent ``k`` is from goal ``j`` than the closest alive agent (0 when ``k`` is
     the closest).
 
-    Agent node: ``[pos / scale (2), vel / MAX_SPEED (2), distance to its nearest goal / scale]``;
-    goal node: ``[pos / scale (2), covered, distance to its nearest alive agent / scale]``
+    Agent node: ``[pos / scale (D), vel / max_speed (D), distance to its nearest goal / scale]``;
+    goal node: ``[pos / scale (D), covered, distance to its nearest alive agent / scale]``
     (``scale = world_size / 2``). The two nearest-distances are position information the
     paper's nodes carry implicitly; giving them explicitly lets agent ``k`` compare its own
     distance ``D_kj`` with the closest competitor's, which speeds up learning to avoid
@@ -149,17 +151,17 @@ def gm_inputs(obs: dict, scale: float):
     near_goal = dist.min(-1).values.unsqueeze(-1)
     big = torch.finfo(dist.dtype).max
     near_agent = dist.masked_fill(~alive.unsqueeze(-1), big).min(1).values.clamp(max=4.0).unsqueeze(-1)
-    a = torch.cat([obs["agent_pos"] / scale, obs["agent_vel"] / MAX_SPEED, near_goal], dim=-1)
+    a = torch.cat([obs["agent_pos"] / scale, obs["agent_vel"] / max_speed, near_goal], dim=-1)
     g = torch.cat([obs["landmark_pos"] / scale, obs["covered"].to(a.dtype).unsqueeze(-1), near_agent], dim=-1)
     margin = (dist - near_agent.transpose(1, 2)).clamp(min=0.0, max=4.0)
     return a, g, torch.stack([dist, margin], dim=-1)
 
 
 class _GraphEncoders(nn.Module):
-    def __init__(self, width: int):
+    def __init__(self, width: int, dims: int = 2):
         super().__init__()
-        self.embed_agent = mlp([5, width], last_activation=True)
-        self.embed_goal = mlp([4, width], last_activation=True)
+        self.embed_agent = mlp([2 * dims + 1, width], last_activation=True)
+        self.embed_goal = mlp([dims + 2, width], last_activation=True)
         self.agent_encoder = SelfEncoder(width)
         self.goal_encoder = SelfEncoder(width)
 
@@ -178,8 +180,8 @@ class GoalMatcher(_GraphEncoders):
     goals in training.
     """
 
-    def __init__(self, width: int = 32):
-        super().__init__(width)
+    def __init__(self, width: int = 32, dims: int = 2):
+        super().__init__(width, dims)
         self.cross = CrossEncoder(width, distance_channels=2)
 
     def forward(self, agent_x, goal_x, dist, alive, goal_mask=None):
@@ -194,8 +196,8 @@ class GoalMatcherCritic(_GraphEncoders):
     the mean of the goal nodes and :func:`global_features`.
     """
 
-    def __init__(self, width: int = 32):
-        super().__init__(width)
+    def __init__(self, width: int = 32, dims: int = 2):
+        super().__init__(width, dims)
         self.head = mlp([3 * width + GLOBAL_FEATURES, width, 1])
 
     def forward(self, agent_x, goal_x, alive, extra):

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..envs.drone_model import GRAVITY, HUMMINGBIRD, MAX_THRUST
+from ..envs.drone_model import GRAVITY, HUMMINGBIRD, MAX_THRUST, quat_to_matrix
 
 __all__ = ["allocation_matrix", "mixing_matrix", "MIXER", "quat_to_matrix", "position_loop", "LeeController",
            "thrusts_to_commands"]
@@ -61,15 +61,6 @@ def mixing_matrix(arm_length: float = HUMMINGBIRD["arm_length"], rotor_angles=HU
 
 MIXER = mixing_matrix()
 """(4, 4) motor mixing of the Hummingbird: rotor thrusts = MIXER @ (thrust, M_x, M_y, M_z)."""
-
-
-def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
-    """Rotation matrices (..., 3, 3) from unit quaternions (..., 4) in MuJoCo's (w, x, y, z)."""
-    w, x, y, z = q.unbind(-1)
-    return torch.stack([
-        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1).reshape(*q.shape[:-1], 3, 3)
 
 
 def position_loop(pos, vel, target_pos, target_vel, target_acc, kx: float = 4.0, kv: float = 2.2,

@@ -74,6 +74,12 @@ class MASPPolicy:
 
     METHOD = "masp"
 
+    def __new__(cls, world=None, *args, **options):
+        if cls is MASPPolicy and getattr(getattr(world, "scenario", None), "kind", None) == "drone":
+            from .drone_masp import DroneMASPPolicy  # drones: the Gaussian executor (MuJoCo only when needed)
+            return DroneMASPPolicy(world, *args, **options)
+        return super().__new__(cls)
+
     def __init__(self, world, checkpoint: str | None = None, seed: int = 0, global_step: int | None = None,
                  deterministic: bool = True, any_scenario: bool = False, decode: str = "joint",
                  resample: bool = False):

@@ -38,6 +38,7 @@ from pathlib import Path
 import torch
 
 from ..envs.scenarios import MPE2_WORLD, get_scenario, world_name
+from ..nets.drones import DroneNets
 from ..nets.masp import MASPNets
 
 __all__ = ["FORMAT", "HERE", "MANIFEST", "REPO_ROOT", "KEPT_DIR", "save_weights", "load_weights", "read_weights",
@@ -53,7 +54,7 @@ REPO_ROOT = HERE.parents[1]
 #: ``results/training/`` of a source checkout: training histories and the kept weights of training seeds and
 #: recipes that are not shipped (absent from an installed package).
 KEPT_DIR = REPO_ROOT / "results" / "training"
-_BASE = {"mpe-20to10": "mpe-20", "mpe-50to20": "mpe-50"}
+_BASE = {"mpe-20to10": "mpe-20", "mpe-50to20": "mpe-50", "drone-20to10": "drone-20"}
 _ZIP_MAGIC, _PICKLE_MAGIC = b"PK", b"\x80"  # torch.save's zip archive; its legacy pickle format
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 #: How to use weights trained elsewhere anyway, in both spellings: the one of the command line and Python's.
@@ -190,6 +191,12 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
             raise ValueError("load_weights: expected a path or a scenario")
         path = default_checkpoint(scenario)
     rec = read_weights(path)
+    kind = "drone" if rec["arch"].get("action", "discrete") != "discrete" else "particle"
+    want = None if scenario is None else (get_scenario(scenario) if isinstance(scenario, str) else scenario).kind
+    if want is not None and kind != want:
+        raise ValueError(f"checkpoint {str(path)!r} holds {kind}-world networks (action "
+                         f"{rec['arch'].get('action', 'discrete')!r}); expected weights for the {want} world of "
+                         f"{scenario if isinstance(scenario, str) else scenario.name!r}")
     if scenario is not None and not any_scenario and rec["scenario"] not in (base_scenario(scenario),
                                                                              trained_preset(scenario)):
         raise ValueError(f"checkpoint {str(path)!r} was trained for {rec['scenario']!r}; expected weights for "
@@ -199,7 +206,7 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
         raise ValueError(f"checkpoint {str(path)!r} was trained in the world {world_name(trained_world(rec))}; "
                          f"expected weights for {world_name(scenario.world)} ({_ANYWAY})")
     try:
-        nets = MASPNets(**rec["arch"])
+        nets = (DroneNets if kind == "drone" else MASPNets)(**rec["arch"])
         nets.load_state_dict(rec["state_dict"])
     except (TypeError, ValueError, RuntimeError, KeyError) as e:
         raise ValueError(f"checkpoint {str(path)!r}: architecture does not match MASPNets "
