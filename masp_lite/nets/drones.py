@@ -39,11 +39,18 @@ from torch import nn
 
 from ..config import NetConfig
 from ..envs.drone_model import HOVER_COMMAND, quat_to_matrix
-from ..envs.drones import CEILING, FLIGHT_HEIGHT
+from ..envs.drones import FLIGHT_HEIGHT
 from .encoders import mlp
 from .fusion import GroupInformationFusion, group_division
-from .masp import ExecutorCritic, GoalMatcher, GoalMatcherCritic, global_features, gm_inputs, goal_features, \
-    pair_features
+from .masp import (
+    ExecutorCritic,
+    GoalMatcher,
+    GoalMatcherCritic,
+    global_features,
+    gm_inputs,
+    goal_features,
+    pair_features,
+)
 
 __all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "gaussian_log_prob", "gaussian_entropy",
            "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
