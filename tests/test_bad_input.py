@@ -273,5 +273,13 @@ def test_bench_train_smoke_and_bad_options(tmp_path, capsys):
     assert {"h-mappo", "mappo", "darl1n", "htamp", "mage-x"} <= set(METHODS) and "x masp" in text
     assert main(["bench", "train", "--methods", "nope"]) == 2
     assert "unknown ['nope']" in capsys.readouterr().err
-    assert main(["bench", "train", "--scenarios", "drone-5"]) == 2
-    assert "not a particle scenario" in capsys.readouterr().err
+    assert main(["bench", "train", "--scenarios", "nope-5"]) == 2
+    assert "unknown scenario" in capsys.readouterr().err.lower()
+
+
+def test_bench_train_has_a_drone_row(tmp_path):
+    out = tmp_path / "train.json"
+    args = ["--scenarios", "drone-5", "--worlds", "2", "--threads", "1", "--json", str(out)]
+    assert main(["bench", "train", *args]) == 0
+    rows = json.loads(out.read_text())["env_steps_per_s"]["drone-5"]
+    assert set(rows) == {"masp", "masp-velocity", "masp (plain autograd)"} and all(v > 0 for v in rows.values())

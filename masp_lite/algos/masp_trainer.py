@@ -70,7 +70,9 @@ class MASPTrainer:
 
     def __init__(self, scenario: str, cfg: TrainConfig, seed: int = 0, overrides: dict | None = None):
         self.cfg, self.seed = cfg, int(seed)
-        self.world = make(scenario, num_envs=cfg.run.num_envs, seed=self.seed, **(overrides or {}))
+        # drone worlds: MuJoCo steps them on as many threads as torch computes on
+        self.world = make(scenario, num_envs=cfg.run.num_envs, seed=self.seed, threads=torch.get_num_threads(),
+                          **(overrides or {}))
         sc = self.world.scenario
         if sc.kind != cfg.net.world:
             hint = "; drones need --set action=throttle (or velocity)" if sc.kind == "drone" else ""

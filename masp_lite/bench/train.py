@@ -1,8 +1,10 @@
 """``python -m masp_lite bench train``: training throughput in environment steps per second.
 
 One environment step is one step of one world (all its agents), the unit of every training
-budget in the manifests. For each scenario (``mpe-20`` and ``mpe-50`` by default) and each
-method — MASP and the RL baselines, :data:`METHODS` — the trainer is built with the from-scratch recipe
+budget in the manifests. For each scenario (``mpe-20``, ``mpe-50`` and ``drone-20`` by default) and each
+method — on particle worlds MASP and the RL baselines, :data:`METHODS`; on drone worlds MASP with motor
+commands and ``masp-velocity``, :data:`DRONE_METHODS` (MuJoCo then steps the worlds with
+``mujoco.batch`` on ``--threads`` threads too) — the trainer is built with the from-scratch recipe
 (:data:`masp_lite.config.FROM_SCRATCH`, ``--worlds`` worlds instead of its 32), one iteration
 (an episode in every world, then PPO on both levels) warms up, and ``--iterations``
 iterations are timed with ``time.perf_counter``, with ``--threads`` torch threads.
@@ -22,19 +24,25 @@ import time
 import torch
 
 from ..config import FROM_SCRATCH, TrainConfig
+from ..envs import get_scenario
 from ..nets.encoders import plain_autograd
+from ..policies.drone_masp import DRONE_METHODS as _DRONE_ACTIONS
 from ..policies.masp import BASELINES, METHOD_SETTINGS
 from . import load_average, write_json
 
-__all__ = ["add_arguments", "run", "throughput", "METHODS"]
+__all__ = ["add_arguments", "run", "throughput", "METHODS", "DRONE_METHODS"]
 
 METHODS = {m: METHOD_SETTINGS[m] for m in ("masp", *BASELINES)}
-"""Measured methods (MASP and the RL baselines) -> the training settings that make each one."""
+"""Measured methods on particle worlds (MASP and the RL baselines) -> the training settings that make each one."""
+DRONE_METHODS = {m: {"action": a} for m, a in _DRONE_ACTIONS.items()}
+"""Measured methods on drone worlds -> their settings."""
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--scenarios", nargs="+", default=["mpe-20", "mpe-50"], help="default: mpe-20 mpe-50")
-    parser.add_argument("--methods", nargs="+", default=list(METHODS), help=f"default: {' '.join(METHODS)}")
+    parser.add_argument("--scenarios", nargs="+", default=["mpe-20", "mpe-50", "drone-20"],
+                        help="default: mpe-20 mpe-50 drone-20")
+    parser.add_argument("--methods", nargs="+", default=None,
+                        help=f"default: {' '.join(METHODS)} (particle), {' '.join(DRONE_METHODS)} (drones)")
     parser.add_argument("--worlds", type=int, default=16, help="worlds per iteration (default 16)")
     parser.add_argument("--iterations", type=int, default=1, help="timed iterations per row (default 1)")
     parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
@@ -44,10 +52,12 @@ def add_arguments(parser) -> None:
 
 def throughput(scenario: str, settings: dict, worlds: int = 16, iterations: int = 1, plain: bool = False) -> float:
     """Environment steps per second of training with ``settings`` added to the recipe."""
+    from ..algos.drone_trainer import DroneMASPTrainer
     from ..algos.masp_trainer import MASPTrainer
     cfg = TrainConfig.from_flat({**FROM_SCRATCH, **settings, "num_envs": worlds})
+    drone = get_scenario(scenario).kind == "drone"
     with plain_autograd() if plain else contextlib.nullcontext():
-        trainer = MASPTrainer(scenario, cfg, seed=0)
+        trainer = (DroneMASPTrainer if drone else MASPTrainer)(scenario, cfg, seed=0)
         trainer.iteration()  # warm-up
         start, t0 = trainer.env_steps, time.perf_counter()
         for _ in range(iterations):
@@ -59,13 +69,11 @@ def run(args) -> int:
     for name in ("worlds", "iterations", "threads"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name}: expected a positive int, got {getattr(args, name)}")
-    unknown = [m for m in args.methods if m not in METHODS]
+    kinds = {sc: get_scenario(sc).kind for sc in args.scenarios}
+    known = {**METHODS, **DRONE_METHODS}
+    unknown = [m for m in args.methods or () if m not in known]
     if unknown:
-        raise ValueError(f"--methods: unknown {unknown}; expected some of {list(METHODS)}")
-    from ..envs import get_scenario
-    for sc in args.scenarios:
-        if get_scenario(sc).kind != "particle":
-            raise ValueError(f"--scenarios: {sc!r} is not a particle scenario; training runs on mpe-*")
+        raise ValueError(f"--methods: unknown {unknown}; expected some of {list(known)}")
     torch.set_num_threads(args.threads)
     load = load_average()
     print(f"training throughput, env steps/s ({args.worlds} worlds, {args.threads} threads, "
@@ -73,9 +81,11 @@ def run(args) -> int:
     res = {"worlds": args.worlds, "threads": args.threads, "iterations": args.iterations,
            "load_average_1min": load, "env_steps_per_s": {}}
     for sc in args.scenarios:
-        rows = {m: throughput(sc, METHODS[m], args.worlds, args.iterations) for m in args.methods}
+        table = DRONE_METHODS if kinds[sc] == "drone" else METHODS
+        methods = [m for m in (args.methods or table) if m in table]
+        rows = {m: throughput(sc, table[m], args.worlds, args.iterations) for m in methods}
         if not args.no_reference:
-            rows["masp (plain autograd)"] = throughput(sc, METHODS["masp"], args.worlds, args.iterations, plain=True)
+            rows["masp (plain autograd)"] = throughput(sc, table["masp"], args.worlds, args.iterations, plain=True)
         res["env_steps_per_s"][sc] = rows
         masp = rows.get("masp")
         plain = rows.get("masp (plain autograd)")

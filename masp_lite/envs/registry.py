@@ -16,12 +16,15 @@ __all__ = ["make", "parallel_env"]
 
 
 def make(scenario: str | Scenario, num_envs: int = 1, device: str | torch.device = "cpu",
-         seed: int | None = None, **overrides):
-    """Batched world for ``scenario`` (particle or drone presets; see :mod:`.scenarios`)."""
+         seed: int | None = None, threads: int = 1, **overrides):
+    """Batched world for ``scenario`` (particle or drone presets; see :mod:`.scenarios`).
+
+    ``threads``: the threads ``mujoco.batch`` steps drone worlds on (particle worlds compute
+    on torch's threads and ignore it)."""
     sc = get_scenario(scenario, **overrides)
     if sc.kind == "drone":
         from .drones import DroneWorld  # MuJoCo is only needed for drones
-        return DroneWorld(sc, num_envs=num_envs, device=device, seed=seed)
+        return DroneWorld(sc, num_envs=num_envs, device=device, seed=seed, threads=threads)
     return ParticleWorld(sc, num_envs=num_envs, device=device, seed=seed)
 
 
