@@ -128,3 +128,11 @@ def test_claims_are_computed_from_the_records():
     assert cut[3] == "20.0 % vs (H)RRT*, 16.7 % vs best" and cut[4] == "no"   # 19.12 % only against (H)RRT*
     assert rows[("MASP SR ≥ 0.99", "mpe-50")][4] == "yes" and rows[("MASP SR ≥ 0.99", "mpe-5")][4] == "—"
     assert rows[("MASP the lowest CR", "mpe-50")][4] == "no"                 # 0.1 everywhere: a tie is not lower
+
+
+def test_the_drone_tables_put_ours_beside_the_papers():
+    records = [_rec("h-orca", "drone-20", 401.5), _rec("h-voronoi", "drone-20to10", 480.25)]
+    text = rp.render(rp.build("omnidrones", records), "text")
+    assert "401.50 (1.00)" in text and "315.31 (14.52)" in text and "437.43 (14.24)" in text
+    varying = rp.render(rp.build("omnidrones-varying", records), "text")
+    assert "480.25 (1.00)" in varying and "426.73 (18.50)" in varying and "MASP (velocity)" in varying

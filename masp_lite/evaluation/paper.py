@@ -1,7 +1,8 @@
 """The paper's numbers, typed in once: every table ``reproduce`` prints beside ours.
 
 Read from the paper's tables "MPE" (``tab: mpe``), "MPE, varying team size"
-(``tab: mpe_varying``), "per-step time" (``tab: time_table``) and the ablations at N = 20
+(``tab: mpe_varying``), "OmniDrones" (``tab: omnidrones``), "OmniDrones, varying team size"
+(``tab:omnidrones_varying``), "per-step time" (``tab: time_table``) and the ablations at N = 20
 (``tab: ab``, ``tab: groupsize``, ``tab: globalsteps``; their MASP, 24.41 Steps, is another
 run than the 25.61 of "MPE"). :mod:`.reproduce`,
 :mod:`.claims` and the benchmarks read them from here.
@@ -57,6 +58,32 @@ PAPER = {
         ("mpe-50to20", "h-rrtstar"): _p(89.18, 4.88, 0.91, 0.01, 0.56, 0.05),
         ("mpe-50to20", "h-voronoi"): _p(88.73, 4.27, 0.91, 0.02, 0.67, 0.03),
         ("mpe-50to20", "masp"): _p(46.49, 4.49, 1.00, 0.00, 0.15, 0.01),
+    },
+    "omnidrones": {
+        ("drone-5", "h-orca"): _p(260.10, 10.02, 0.98, 0.03, 0.00, 0.01),
+        ("drone-5", "h-rrtstar"): _p(236.10, 9.47, 0.97, 0.01, 0.01, 0.01),
+        ("drone-5", "h-voronoi"): _p(173.89, 12.91, 0.99, 0.02, 0.02, 0.01),
+        ("drone-5", "h-mappo"): _p(185.34, 7.14, 1.00, 0.00, 0.01, 0.01),
+        ("drone-5", "mappo"): _p(None, None, 0.50, 0.09, 0.01, 0.01),
+        ("drone-5", "darl1n"): _p(None, None, 0.68, 0.02, 0.01, 0.01),
+        ("drone-5", "htamp"): _p(None, None, 0.32, 0.08, 0.01, 0.01),
+        ("drone-5", "mage-x"): _p(231.26, 19.32, 0.99, 0.01, 0.01, 0.01),
+        ("drone-5", "masp"): _p(138.35, 13.57, 1.00, 0.00, 0.00, 0.00),
+        ("drone-20", "h-orca"): _p(449.10, 14.86, 0.97, 0.03, 0.01, 0.03),
+        ("drone-20", "h-rrtstar"): _p(438.23, 11.02, 0.97, 0.01, 0.03, 0.03),
+        ("drone-20", "h-voronoi"): _p(437.43, 14.24, 0.93, 0.01, 0.01, 0.03),
+        ("drone-20", "h-mappo"): _p(335.74, 13.07, 0.96, 0.01, 0.01, 0.01),
+        ("drone-20", "mappo"): _p(None, None, 0.15, 0.03, 0.03, 0.02),
+        ("drone-20", "darl1n"): _p(None, None, 0.15, 0.01, 0.05, 0.01),
+        ("drone-20", "htamp"): _p(None, None, 0.14, 0.03, 0.04, 0.02),
+        ("drone-20", "mage-x"): _p(None, None, 0.14, 0.03, 0.08, 0.02),
+        ("drone-20", "masp"): _p(315.31, 14.52, 0.97, 0.01, 0.01, 0.01),
+    },
+    "omnidrones-varying": {
+        ("drone-20to10", "h-orca"): _p(None, None, 0.68, 0.04, 0.00, 0.01),
+        ("drone-20to10", "h-rrtstar"): _p(None, None, 0.61, 0.04, 0.01, 0.01),
+        ("drone-20to10", "h-voronoi"): _p(490.35, 15.63, 0.85, 0.03, 0.01, 0.01),
+        ("drone-20to10", "masp"): _p(426.73, 18.50, 0.94, 0.01, 0.01, 0.01),
     },
     # the ablations, N = 20; groupsize and globalsteps are keyed by the setting's value
     "ab": {

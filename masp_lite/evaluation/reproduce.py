@@ -224,6 +224,25 @@ def table_mpe_varying(records, latex=False) -> Table:
                          _columns(("h-orca", "h-rrtstar", "h-voronoi", "masp") + _OURS_ONLY), records, latex)
 
 
+def table_omnidrones(records, latex=False) -> Table:
+    """Table "OmniDrones" (N = 5, 20): the paper's columns, then ours only: MASP whose executor asks the
+    geometric controller for a velocity (``masp-velocity``), h-greedy and h-bottleneck. The RL
+    baselines' columns keep the paper's cells; they are not trained on drones here."""
+    methods = ("h-orca", "h-rrtstar", "h-voronoi", *_RL, "masp")
+    columns = _columns(methods) + [("MASP (velocity)", "masp-velocity", "")] + _columns(("h-greedy", "h-bottleneck"))
+    return _metric_table("omnidrones", "OmniDrones, N = 5 / 20", ("drone-5", "drone-20"), columns, records, latex,
+                         paper=lambda sc, i: PAPER["omnidrones"].get((sc, columns[i][1])) if i < len(methods)
+                         else None)
+
+
+def table_omnidrones_varying(records, latex=False) -> Table:
+    """Table "OmniDrones, varying team size" (20 => 10, zero-shot from the drone-20 weights)."""
+    columns = _columns(("h-orca", "h-rrtstar", "h-voronoi", "masp")) + [("MASP (velocity)", "masp-velocity", "")] \
+        + _columns(("h-greedy", "h-bottleneck"))
+    return _metric_table("omnidrones-varying", "OmniDrones, varying team size", ("drone-20to10",), columns, records,
+                         latex, paper=lambda sc, i: PAPER["omnidrones-varying"].get((sc, columns[i][1])))
+
+
 def table_time(records, latex=False) -> Table:
     """Table "per-step time": ms per step of one world at N = 50 (``bench planners`` / ``bench decide``).
 
@@ -423,11 +442,20 @@ def table_claims(records, latex=False) -> Table:
                  ["Claim", "Scenario", "paper", "ours", "holds"], rows)
 
 
-TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "per-step-time": table_time, "claims": table_claims,
+TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "omnidrones": table_omnidrones,
+          "omnidrones-varying": table_omnidrones_varying, "per-step-time": table_time, "claims": table_claims,
           "faithful": table_faithful,
           **{name: (lambda records, latex=False, name=name: table_ablation(name, records, latex))
              for name in ABLATION_TABLES},
           "ablation-claims": table_ablation_claims}
+
+
+def _drone_weights(method: str, scenario: str) -> bool:
+    """Whether a learned drone method has weights here: shipped (``masp``) or kept (``masp-velocity``)."""
+    base = base_scenario(scenario)
+    if method == "masp":
+        return base in read_manifest()
+    return (KEPT_DIR / method / f"{base}-seed0.pt").exists()
 
 
 def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress: bool = False) -> list[dict]:
@@ -453,16 +481,20 @@ def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress:
     if table == "per-step-time":
         return [evaluate(m, "mpe-50", episodes=episodes, seeds=list(seeds), num_envs=1, progress=progress)
                 for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
-    scenarios = {"mpe": ("mpe-5", "mpe-20", "mpe-50"), "mpe-varying": ("mpe-20to10", "mpe-50to20")}[table]
+    scenarios = {"mpe": ("mpe-5", "mpe-20", "mpe-50"), "mpe-varying": ("mpe-20to10", "mpe-50to20"),
+                 "omnidrones": ("drone-5", "drone-20"), "omnidrones-varying": ("drone-20to10",)}[table]
     columns = build(table, []).head[3:]  # the table's own columns, by label
     label_to = {label: (m, kept) for label, m, kept in
-                _columns(_MPE_COLUMNS + _OURS_ONLY) + [("MASP (budget)", "masp", "masp-budget/")]}
+                _columns(_MPE_COLUMNS + _OURS_ONLY) + [("MASP (budget)", "masp", "masp-budget/"),
+                                                       ("MASP (velocity)", "masp-velocity", "")]}
     runs = []
     for sc in scenarios:
         for m, kept in (label_to[c] for c in columns):
-            if m not in METHODS:
+            if m not in METHODS or (kept and sc.startswith("drone")):  # no RL baselines trained on drones
                 continue
             if not kept:  # the shipped method
+                if sc.startswith("drone") and _learned(m) and not _drone_weights(m, sc):
+                    continue  # no drone weights in this checkout
                 runs.append((m, sc, {}))
                 continue
             for k in sorted((RESULTS_DIR / "training" / kept).glob(f"{base_scenario(sc)}-seed*.pt")):

@@ -28,8 +28,8 @@ DRONE_METHODS = {"masp": "throttle", "masp-velocity": "velocity"}
 class DroneMASPPolicy:
     """Trained MASP for drone worlds (method ``masp``; the networks' ``action`` is ``ACTION``).
 
-    ``checkpoint``: a weights file (default: the kept seed-0 weights,
-    ``results/training/METHOD/drone-N-seed0.pt`` of a source checkout, or the shipped ones).
+    ``checkpoint``: a weights file (default: the shipped ones for ``masp``, the kept seed-0
+    weights ``results/training/METHOD/drone-N-seed0.pt`` of a source checkout for ``masp-velocity``).
     ``seed`` seeds the group division and, with ``deterministic=False``, the samples;
     ``global_step`` overrides the weights' Goal Matcher period.
     """
@@ -54,11 +54,16 @@ class DroneMASPPolicy:
         self._setup(world, nets, meta, gs, seed, deterministic)
 
     def kept(self, scenario):
+        """Default weights: the shipped ones for ``masp`` (None), the kept seed 0 for the others."""
+        if self.METHOD == "masp":
+            return None
         name = {"drone-20to10": "drone-20"}.get(scenario.name, scenario.name)
         path = KEPT_DIR / self.METHOD / f"{name}-seed0.pt"
-        if path.exists():
-            return path
-        return None  # the shipped weights, if any (load_weights says when there are none)
+        if not path.exists():
+            raise ValueError(f"{self.METHOD}: no weights given and none kept for {scenario.name!r} (expected "
+                             f"results/training/{self.METHOD}/{name}-seed0.pt of a source checkout); pass "
+                             "checkpoint=PATH")
+        return path
 
     def _setup(self, world, nets, meta, global_step, seed, deterministic):
         self.world, self.nets, self.meta = world, nets.eval(), meta
