@@ -94,6 +94,16 @@ def method_config(method: str | None, sets=(), scenario: str | None = None) -> t
     return method, cfg, overrides
 
 
+def _layout(arch: dict) -> dict:
+    """The settings that decide the networks' parameters: a stage may change the others (the Goal
+    Matcher's period; Hungarian or random goals to a trained Goal Matcher, whose networks exist in
+    every weights file) and start from the weights of the stage before (``--init``)."""
+    same_networks = {"graph": "graph", "hungarian": "graph", "random": "graph"}
+    out = {k: v for k, v in arch.items() if k != "global_step"}
+    out["goal_matcher"] = same_networks.get(arch["goal_matcher"], arch["goal_matcher"])
+    return out
+
+
 def _drone_method_config(method, sets, scenario) -> tuple[str, TrainConfig, dict]:
     """:func:`method_config` for a drone scenario: ``masp`` (motor commands) or ``masp-velocity``."""
     given = dict(s.split("=", 1) for s in sets if "=" in s)
@@ -212,7 +222,8 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         rows = _read_csv(out / "progress.csv", trainer.iterations)
     elif init is not None:
         nets, rec = load_weights(init, any_scenario=True)
-        if nets.arch != trainer.nets.arch:
+        a, b = (_layout(x.arch) for x in (nets, trainer.nets))
+        if a != b:
             raise ValueError(f"--init {init}: architecture {nets.arch} differs from the configured {trainer.nets.arch}")
         trainer.nets.load_state_dict(nets.state_dict())
     out.mkdir(parents=True, exist_ok=True)

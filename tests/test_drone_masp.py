@@ -76,6 +76,16 @@ def test_a_drone_run_trains_resumes_and_is_deterministic(tmp_path):
     assert whole["env_steps"] == 2 * 2 * 300
     nets, rec = load_weights(tmp_path / "whole" / "weights.pt", scenario="drone-5")
     assert isinstance(nets, DroneNets) and rec["arch"]["action"] == "throttle"
+    # the curriculum's next stage: the Goal Matcher trained too, from the executor-only stage's weights
+    _, cfg2, _ = method_config(None, [*TINY, "updates=1"], "drone-5")
+    train("drone-5", cfg2, tmp_path / "stage2", seed=1, progress=False, init=tmp_path / "whole" / "weights.pt")
+    after, _ = load_weights(tmp_path / "stage2" / "weights.pt", scenario="drone-5")
+    assert after.config.goal_matcher == "graph"
+    before, now = nets.state_dict(), after.state_dict()
+    assert any(not torch.equal(before[k], now[k]) for k in now if k.startswith("gm."))  # the Goal Matcher learned
+    with pytest.raises(ValueError, match="differs from the configured"):  # another layout: refused
+        _, wide, _ = method_config(None, [*TINY, "width=16"], "drone-5")
+        train("drone-5", wide, tmp_path / "wide", progress=False, init=tmp_path / "whole" / "weights.pt")
 
 
 def test_the_drone_trainer_learns_the_goal_matcher_too():
