@@ -40,14 +40,6 @@ def test_untrained_executor_asks_for_hover_and_runs_any_team_size():
     assert torch.allclose(st[..., :9], torch.eye(3).flatten().expand(2, 20, 9), atol=1e-6)  # level at reset
 
 
-def test_velocity_executor_starts_still():
-    nets = DroneNets(NetConfig(action="velocity", width=8))
-    world = make("drone-5", num_envs=1, seed=0)
-    obs = world.reset()
-    mean, _ = nets.cae_logits(nets.cae_inputs(obs, torch.arange(5)[None], torch.arange(5)[None]))
-    assert mean.shape == (1, 5, 3) and mean.abs().max() < 0.05
-
-
 def test_crash_charge_makes_crashing_no_better_than_hovering():
     dist = torch.tensor([[2.0, 4.0]])
     crashed = torch.tensor([[True, False]])
@@ -89,7 +81,7 @@ def test_a_drone_run_trains_resumes_and_is_deterministic(tmp_path):
 
 
 def test_the_drone_trainer_learns_the_goal_matcher_too():
-    _, cfg, _ = method_config("masp-velocity", TINY, "drone-5")
+    _, cfg, _ = method_config("masp", TINY, "drone-5")
     tr = DroneMASPTrainer("drone-5", cfg, seed=0)
     row = tr.iteration()
     assert math.isfinite(row["gm_policy_loss"]) and math.isfinite(row["cae_policy_loss"])
@@ -105,8 +97,6 @@ def test_policy_flies_shipped_shapes_and_refuses_the_wrong_weights(tmp_path):
     a = policy.act(obs)
     assert a.shape == (3, 5, 4) and a.dtype == torch.float32 and a.abs().max() <= 1
     world.step(a)
-    with pytest.raises(ValueError, match="masp-velocity|expected 'velocity'"):
-        make_policy("masp-velocity", world, checkpoint=str(path))
     with pytest.raises(ValueError, match="drone-world networks.*particle world"):
         make_policy("masp", make("mpe-5", num_envs=1), checkpoint=str(path))
     particle = tmp_path / "particle.pt"
@@ -118,7 +108,7 @@ def test_policy_flies_shipped_shapes_and_refuses_the_wrong_weights(tmp_path):
 
 @pytest.mark.parametrize("method, sets, match", [
     ("h-mappo", [], "drone scenarios .* train"),
-    ("masp", ["action=velocity"], "makes another one"),
+    ("masp", ["action=discrete"], "makes another one"),
     (None, ["goal_matcher=random"], "goal_matcher 'graph' or 'hungarian'"),
 ])
 def test_bad_drone_training_settings_are_one_clear_error(method, sets, match):

@@ -7,9 +7,7 @@ storage, GAE, PPO on both levels, checkpoints and resume) with a drone rollout:
    (``goal_matcher="graph"``, trained on R_GM against the 3-D Hungarian assignment) or takes
    the Hungarian assignment (``goal_matcher="hungarian"``: an executor-only curriculum stage);
 2. the executor (:class:`~masp_lite.nets.drones.DroneExecutor`) samples a Gaussian action per
-   drone; the clipped sample is 4 motor commands (``action="throttle"``, the paper's) or a
-   velocity set-point that :class:`~masp_lite.planners.geometric.LeeController` turns into
-   motor commands (``action="velocity"``);
+   drone; the clipped sample is its 4 motor commands (the paper's drone action);
 3. R_CAE (eq. 5, :func:`~masp_lite.algos.rewards.executor_reward`) in 3-D, where a contact,
    a floor touch or leaving the flight volume is the collision (the world's
    ``agent_collisions``), and **a crash ends the drone**: it is out of the episode (the
@@ -26,8 +24,7 @@ from __future__ import annotations
 import torch
 
 from ..nets.decoding import sequential_sample
-from ..nets.drones import DRONE_SPEED, gaussian_log_prob
-from ..planners.geometric import LeeController
+from ..nets.drones import gaussian_log_prob
 from .assignment import hungarian_goals
 from .mappo import RolloutStorage
 from .masp_trainer import MASPTrainer
@@ -45,7 +42,7 @@ def crash_charge(dist: torch.Tensor, crashed: torch.Tensor, steps_left: int, wor
 
 
 class DroneMASPTrainer(MASPTrainer):
-    """MASP on a drone scenario (``NetConfig.action`` ``throttle`` or ``velocity``)."""
+    """MASP on a drone scenario (``NetConfig.action="throttle"``)."""
 
     distribution = "gaussian"
 
@@ -54,17 +51,6 @@ class DroneMASPTrainer(MASPTrainer):
         if self.random_goals or self.goal_free:
             raise ValueError(f"drone training: expected goal_matcher 'graph' or 'hungarian', got "
                              f"{cfg.net.goal_matcher!r}")
-        self.velocity = cfg.net.action == "velocity"
-        self.controller = LeeController(kv=4.0, max_speed=DRONE_SPEED) if self.velocity else None
-
-    def commands(self, actions: torch.Tensor, obs: dict) -> torch.Tensor:
-        """The world's motor commands (B, N, 4) for clipped executor samples ``actions``."""
-        a = actions.clamp(-1.0, 1.0)
-        if not self.velocity:
-            return a
-        pos = obs["agent_pos"]
-        return self.controller(pos, obs["agent_vel"], obs["agent_quat"], obs["agent_angvel"], target_pos=pos,
-                               target_vel=a * DRONE_SPEED)
 
     @torch.inference_mode()
     def collect(self):
@@ -92,7 +78,7 @@ class DroneMASPTrainer(MASPTrainer):
             actions = mean + log_std.exp() * torch.randn(mean.shape, generator=g, dtype=mean.dtype)
             logp = gaussian_log_prob(mean, log_std, actions)
             alive = obs["alive"].clone()
-            obs, info = w.step(self.commands(actions, obs))
+            obs, info = w.step(actions.clamp(-1.0, 1.0))
             goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand(B, N, 3))
             r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
                                 w.scenario.world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)

@@ -225,11 +225,10 @@ def table_mpe_varying(records, latex=False) -> Table:
 
 
 def table_omnidrones(records, latex=False) -> Table:
-    """Table "OmniDrones" (N = 5, 20): the paper's columns, then ours only: MASP whose executor asks the
-    geometric controller for a velocity (``masp-velocity``), h-greedy and h-bottleneck. The RL
-    baselines' columns keep the paper's cells; they are not trained on drones here."""
+    """Table "OmniDrones" (N = 5, 20): the paper's columns, then ours only: h-greedy and h-bottleneck.
+    The RL baselines' columns keep the paper's cells; they are not trained on drones here."""
     methods = ("h-orca", "h-rrtstar", "h-voronoi", *_RL, "masp")
-    columns = _columns(methods) + [("MASP (velocity)", "masp-velocity", "")] + _columns(("h-greedy", "h-bottleneck"))
+    columns = _columns((*methods, "h-greedy", "h-bottleneck"))
     return _metric_table("omnidrones", "OmniDrones, N = 5 / 20", ("drone-5", "drone-20"), columns, records, latex,
                          paper=lambda sc, i: PAPER["omnidrones"].get((sc, columns[i][1])) if i < len(methods)
                          else None)
@@ -237,8 +236,7 @@ def table_omnidrones(records, latex=False) -> Table:
 
 def table_omnidrones_varying(records, latex=False) -> Table:
     """Table "OmniDrones, varying team size" (20 => 10, zero-shot from the drone-20 weights)."""
-    columns = _columns(("h-orca", "h-rrtstar", "h-voronoi", "masp")) + [("MASP (velocity)", "masp-velocity", "")] \
-        + _columns(("h-greedy", "h-bottleneck"))
+    columns = _columns(("h-orca", "h-rrtstar", "h-voronoi", "masp", "h-greedy", "h-bottleneck"))
     return _metric_table("omnidrones-varying", "OmniDrones, varying team size", ("drone-20to10",), columns, records,
                          latex, paper=lambda sc, i: PAPER["omnidrones-varying"].get((sc, columns[i][1])))
 
@@ -451,11 +449,8 @@ TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "omnidrones": tabl
 
 
 def _drone_weights(method: str, scenario: str) -> bool:
-    """Whether a learned drone method has weights here: shipped (``masp``) or kept (``masp-velocity``)."""
-    base = base_scenario(scenario)
-    if method == "masp":
-        return base in read_manifest()
-    return (KEPT_DIR / method / f"{base}-seed0.pt").exists()
+    """Whether drone weights of a learned method ship with this package (``masp``: its manifest has them)."""
+    return method == "masp" and base_scenario(scenario) in read_manifest()
 
 
 def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress: bool = False) -> list[dict]:
@@ -485,8 +480,7 @@ def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress:
                  "omnidrones": ("drone-5", "drone-20"), "omnidrones-varying": ("drone-20to10",)}[table]
     columns = build(table, []).head[3:]  # the table's own columns, by label
     label_to = {label: (m, kept) for label, m, kept in
-                _columns(_MPE_COLUMNS + _OURS_ONLY) + [("MASP (budget)", "masp", "masp-budget/"),
-                                                       ("MASP (velocity)", "masp-velocity", "")]}
+                _columns(_MPE_COLUMNS + _OURS_ONLY) + [("MASP (budget)", "masp", "masp-budget/")]}
     runs = []
     for sc in scenarios:
         for m, kept in (label_to[c] for c in columns):

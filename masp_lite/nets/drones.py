@@ -11,15 +11,11 @@ The design is the particle world's (:mod:`masp_lite.nets.masp`), node for node:
   (:func:`~masp_lite.nets.masp.goal_features` in 3-D) and, in place of obstacles (the
   drone world has none), the drone's own flight state (:func:`drone_state_features`: its
   attitude, body rates, height and rotor throttles — what a motor-level controller needs).
-* **Actions** (``NetConfig.action``), a Gaussian with a learned, state-independent log-std
-  per dimension (initialised at ``NetConfig.log_std_init``), as MAPPO's continuous policies:
-
-  - ``throttle`` (the paper's): 4 motor commands; the mean is ``HOVER_COMMAND`` plus the
-    head's output, whose last layer starts near 0, so an untrained executor hovers;
-  - ``velocity`` (the variant ``masp-velocity``): a 3-D velocity set-point in units of
-    ``DRONE_SPEED``, flown by the geometric controller (:class:`~masp_lite.planners.geometric.LeeController`).
-
-  A sample is clipped to [−1, 1] before it reaches the world or the controller; the policy
+* **Actions** (``NetConfig.action="throttle"``, the paper's): the 4 motor commands, a
+  Gaussian with a learned, state-independent log-std per dimension (initialised at
+  ``NetConfig.log_std_init``), as MAPPO's continuous policies. Its mean is
+  ``HOVER_COMMAND`` plus the head's output, whose last layer starts near 0, so an untrained
+  executor hovers. A sample is clipped to [−1, 1] before it reaches the world; the policy
   is trained on the log-probability of the unclipped sample (the clip belongs to the world),
   which keeps the log-probability exact and the entropy in closed form
   (:func:`gaussian_log_prob`). The deterministic action is the clipped mean.
@@ -56,14 +52,14 @@ __all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "gaussian_log_p
            "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
 
 DRONE_SPEED = 4.0
-"""m/s: velocities are divided by it, and a ``velocity`` action of 1 asks for it."""
+"""m/s: velocities are divided by it."""
 DRONE_SENSE = 2.0
 """Metres at which neighbour vectors are clipped."""
 ANGVEL_SCALE = 10.0
 """rad/s: body rates are divided by it."""
 PAIR_FEATURES, GOAL_FEATURES, STATE_FEATURES = 8, 8, 17
 #: Action dimensions per drone for each ``NetConfig.action``.
-ACTION_SIZE = {"throttle": 4, "velocity": 3}
+ACTION_SIZE = {"throttle": 4}
 
 
 def drone_state_features(obs: dict) -> torch.Tensor:
@@ -120,7 +116,7 @@ class DroneExecutor(nn.Module):
 
 class DroneNets(nn.Module):
     """Both levels' actors and critics for drones, from a :class:`~masp_lite.config.NetConfig`
-    whose ``action`` is ``throttle`` or ``velocity``; the interface of :class:`~masp_lite.nets.masp.MASPNets`."""
+    whose ``action`` is ``throttle``; the interface of :class:`~masp_lite.nets.masp.MASPNets`."""
 
     def __init__(self, config: NetConfig | None = None, **arch):
         super().__init__()
