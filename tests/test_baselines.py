@@ -96,7 +96,7 @@ def test_train_rejects_bad_methods_and_settings_before_writing(tmp_path, capsys)
     out = tmp_path / "run"
     for argv, msg in [(["--method", "h-greedy", "--scenario", "mpe-5"], "not a method trained here"),
                       (["--method", "h-mappo", "--scenario", "mpe-5", "--set", "executor=graph"], "makes another one"),
-                      (["--method", "htamp", "--scenario", "drone-5"], "expected a particle scenario"),
+                      (["--method", "htamp", "--scenario", "drone-5"], "drone scenarios ('drone-5') train"),
                       (["--scenario", "mpe-5", "--set", "executor=nearest"], "no method has the settings")]:
         assert main(["train", *argv, "--out", str(out)]) == 2
         assert msg in capsys.readouterr().err

@@ -185,7 +185,8 @@ def test_shipped_weights_load_and_act():
         pol = MASPPolicy(w)
         obs = w.reset()
         pol.reset(obs)
-        assert pol.act(obs).shape == (2, w.num_agents)
+        shape = (2, w.num_agents, 4) if w.scenario.kind == "drone" else (2, w.num_agents)
+        assert pol.act(obs).shape == shape  # drones: motor commands
 
 
 def test_shipped_file_that_differs_from_manifest_is_refused(tmp_path, monkeypatch):
