@@ -136,3 +136,20 @@ def test_the_drone_tables_put_ours_beside_the_papers():
     assert "401.50 (1.00)" in text and "315.31 (14.52)" in text and "437.43 (14.24)" in text
     varying = rp.render(rp.build("omnidrones-varying", records), "text")
     assert "480.25 (1.00)" in varying and "426.73 (18.50)" in varying and "h-greedy" in varying
+
+
+def test_drone_claims_are_computed_from_the_records():
+    records = [_rec("masp", "drone-20", 300.0), _rec("h-orca", "drone-20", 420.0), _rec("h-rrtstar", "drone-20", 400.0),
+               _rec("h-voronoi", "drone-20", 450.0), _rec("h-orca", "drone-20to10", 280.0),
+               _rec("h-rrtstar", "drone-20to10", 290.0)]
+    rows = {(r[0], r[1]): r for r in rp.build("drone-claims", records).rows}
+    assert rows[("MASP SR ≥ 0.95", "drone-20")][3:] == ["1.000", "yes"]
+    assert rows[("MASP SR ≥ 0.99", "drone-5")][3:] == ["—", "—"]
+    assert rows[("MASP fewer Steps than every (H) planner", "drone-20")][3:] == ["300.00 vs (H)RRT* 400.00", "yes"]
+    cut = rows[("(H) planners need ≥ 27.92 % more Steps than MASP", "drone-20")]
+    assert cut[2:] == ["27.9 %", "25.0 %", "no"]                  # (400 - 300) / 400, below the paper's cut
+    assert rows[("MASP the lowest CR", "drone-20")][4] == "no"       # 0.1 everywhere: a tie is not lower
+    assert rows[("No (H) planner reaches SR 1.00", "drone-20to10")][3:] == ["—", "—"]   # h-voronoi missing
+    records.append(_rec("h-voronoi", "drone-20to10", 300.0))
+    rows = {(r[0], r[1]): r for r in rp.build("drone-claims", records).rows}
+    assert rows[("No (H) planner reaches SR 1.00", "drone-20to10")][3:] == ["(H)ORCA 1.000", "no"]

@@ -33,8 +33,10 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     names = args.table or list(TABLES)
     if args.evaluate or args.quick:  # each table's records once; the claims read them all
-        needed = ["mpe", "mpe-varying", "per-step-time"] if "claims" in names else names
-        records = [r for name in dict.fromkeys([*needed, *names]) if name != "claims"
+        sources = {"claims": ["mpe", "mpe-varying", "per-step-time"],
+                   "drone-claims": ["omnidrones", "omnidrones-varying"]}
+        needed = dict.fromkeys(t for name in names for t in sources.get(name, [name]))
+        records = [r for name in needed
                    for r in evaluate_records(name, episodes=4 if args.quick else 100, progress=True)]
     else:
         records = load_records(args.records or RESULTS_DIR)
