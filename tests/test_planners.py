@@ -282,6 +282,13 @@ def test_bench_planners_times_act_and_splits_collisions():
         step_times("h-orca", "mpe-5", episodes=0)
 
 
+def test_bench_planners_times_the_drone_planners_without_the_papers_mpe_column(capsys):
+    from masp_lite.cli import main
+    assert main(["bench", "planners", "--scenario", "drone-5", "--methods", "h-orca", "--episodes", "1"]) == 0
+    row = [line for line in capsys.readouterr().out.splitlines() if line.startswith("h-orca")][0]
+    assert row.split()[3] == "-"            # no paper figure beside a drone timing
+
+
 def test_voronoi_route_follows_predecessors():
     from masp_lite.planners.voronoi import route
     pred = np.array([-9999, 0, 1, 1, -9999])
