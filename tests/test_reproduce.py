@@ -153,3 +153,14 @@ def test_drone_claims_are_computed_from_the_records():
     records.append(_rec("h-voronoi", "drone-20to10", 300.0))
     rows = {(r[0], r[1]): r for r in rp.build("drone-claims", records).rows}
     assert rows[("No (H) planner reaches SR 1.00", "drone-20to10")][3:] == ["(H)ORCA 1.000", "no"]
+
+
+def test_reproduce_evaluates_each_table_a_claims_table_reads_once(monkeypatch):
+    import argparse
+
+    import masp_lite.cli.reproduce as cli
+    calls = []
+    monkeypatch.setattr(cli, "evaluate_records", lambda name, episodes, progress: calls.append(name) or [])
+    cli.run(argparse.Namespace(table=["ab", "ablation-claims", "drone-claims", "omnidrones"], format="text",
+                               evaluate=False, quick=True, records=None))
+    assert calls == ["ab", "groupsize", "globalsteps", "omnidrones", "omnidrones-varying"]

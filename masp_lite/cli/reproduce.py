@@ -1,11 +1,11 @@
 """``python -m masp_lite reproduce [--table NAME] [--format F] [--evaluate | --quick] [--records DIR]``.
 
 Prints the paper's tables with ours beside the paper's (:mod:`masp_lite.evaluation.reproduce`),
-then its MPE claims checked on the same records (``--table claims``): from the records in
-``results/`` (seconds), or ``--evaluate`` — every registered method of the table with its
-shipped weights, 3 seeds × 100 episodes (about 30 minutes for "mpe" on one core, most of it
-the planners on mpe-50) — or ``--quick``, 3 seeds × 4 episodes (60 s for "mpe" on one core),
-for a first look and for tests.
+then the paper's claims checked on the same records (``--table claims``, ``drone-claims``,
+``ablation-claims``): from the records in ``results/`` (seconds), or ``--evaluate`` — every
+registered method of the table with its shipped weights, 3 seeds × 100 episodes (about 30
+minutes for "mpe" on one core, most of it the planners on mpe-50) — or ``--quick``, 3 seeds ×
+4 episodes (60 s for "mpe" on one core), for a first look and for tests.
 """
 from __future__ import annotations
 
@@ -34,7 +34,8 @@ def run(args) -> int:
     names = args.table or list(TABLES)
     if args.evaluate or args.quick:  # each table's records once; the claims read them all
         sources = {"claims": ["mpe", "mpe-varying", "per-step-time"],
-                   "drone-claims": ["omnidrones", "omnidrones-varying"]}
+                   "drone-claims": ["omnidrones", "omnidrones-varying"],
+                   "ablation-claims": ["ab", "groupsize", "globalsteps"]}
         needed = dict.fromkeys(t for name in names for t in sources.get(name, [name]))
         records = [r for name in needed
                    for r in evaluate_records(name, episodes=4 if args.quick else 100, progress=True)]
