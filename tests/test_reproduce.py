@@ -1,5 +1,6 @@
 """``reproduce``: the paper's tables from records, ours beside the paper's, never mixing worlds."""
 import json
+from pathlib import Path
 
 import pytest
 
@@ -164,3 +165,14 @@ def test_reproduce_evaluates_each_table_a_claims_table_reads_once(monkeypatch):
     cli.run(argparse.Namespace(table=["ab", "ablation-claims", "drone-claims", "omnidrones"], format="text",
                                evaluate=False, quick=True, records=None))
     assert calls == ["ab", "groupsize", "globalsteps", "omnidrones", "omnidrones-varying"]
+
+
+def test_readme_claims_are_the_ones_the_records_give():
+    """README.md's claims blocks (``<!-- reproduce NAME -->``) are what ``reproduce`` prints now."""
+    import re
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    blocks = re.findall(r"<!-- reproduce ([\w-]+) -->\n(.*?)\n<!-- /reproduce -->", text, flags=re.S)
+    assert {name for name, _ in blocks} == {"claims", "drone-claims", "ablation-claims"}
+    records = rp.load_records()
+    for name, body in blocks:
+        assert body == rp.render(rp.build(name, records), "markdown"), f"README.md: the {name} block is stale"
