@@ -270,3 +270,42 @@ def test_one_layer_fusion_matches_the_general_path_in_value_and_gradients(agents
     assert torch.autograd.gradcheck(
         lambda *p: fusion._OneLayerFusion.apply(pair, groups, others, weight, *p),
         (gif.embed[0].weight, gif.embed[0].bias, gif.gcn[0].weight, gif.gcn[0].bias))
+
+
+@pytest.mark.parametrize("executor", ["attention", "radius"])
+@pytest.mark.parametrize("dead", [False, True])
+def test_pool_kernel_matches_autograd_in_value_and_gradients(executor, dead, monkeypatch):
+    """The chunked pooling kernel of mappo/darl1n (hand-written backward) against plain autograd."""
+    from masp_lite.nets import baselines
+    from masp_lite.nets.encoders import plain_autograd
+    monkeypatch.setattr(baselines, "CHUNK_ROWS", 30)  # several chunks even for these small worlds
+    torch.manual_seed(4)
+    agents = 6
+    view = (baselines.AttentionPool(6, 5) if executor == "attention" else baselines.RadiusMean(6, 5)).double()
+    pos = torch.rand(3, agents, 2, dtype=torch.float64) * 1.5   # some pairs within 1 m, some beyond
+    pair = pair_features(pos, torch.randn(3, agents, 2, dtype=torch.float64))
+    alive = torch.ones(3, agents, dtype=torch.bool)
+    if dead:
+        alive[1, [1, 3]] = False
+        alive[2, 1:] = False                                    # agent 0 alone: nobody to pool
+    g = torch.randn(3, agents, 5, dtype=torch.float64)
+    fast = view(pair, None, alive)
+    mine = torch.autograd.grad(fast, list(view.parameters()), g, allow_unused=True)
+    with plain_autograd():
+        plain = view(pair, None, alive)
+        theirs = torch.autograd.grad(plain, list(view.parameters()), g, allow_unused=True)
+    torch.testing.assert_close(fast, plain)
+    for a, c in zip(mine, theirs):
+        if c is None:  # the score's last bias does not move a softmax: autograd reports no gradient
+            assert a is None or torch.count_nonzero(a.abs() > 1e-12) == 0
+        else:
+            torch.testing.assert_close(a, c)
+    if dead:
+        assert torch.count_nonzero(fast[2, 0]) == 0
+    assert torch.autograd.gradcheck(lambda *p: _pool_with(view, pair, alive, p), tuple(view.parameters()))
+
+
+def _pool_with(view, pair, alive, params):
+    """``view`` evaluated with ``params`` in place of its own (gradcheck perturbs them)."""
+    return torch.func.functional_call(view, dict(zip([n for n, _ in view.named_parameters()], params)),
+                                      (pair, None, alive))

@@ -32,16 +32,26 @@ paper applies it), and the other agents through
 Pair features are :func:`masp_lite.nets.masp.pair_features` (distance clipped at 1 m), so
 "nearest" ranks the agents within 1 m by distance; beyond it they all sit at the edge and
 the order among them is arbitrary but fixed (by index). Every module serves any team size.
+
+:class:`AttentionPool` and :class:`RadiusMean` see every pair: at 50 agents a training
+minibatch holds millions of (agent, other) rows, and autograd would keep several
+(rows, width) intermediates of each. :class:`_PoolKernel` computes both a few worlds at a
+time with a hand-written backward, as the fusion's kernel does
+(:class:`masp_lite.nets.fusion._OneLayerFusion`); :func:`masp_lite.nets.encoders.plain_autograd`
+switches it off, and the two paths agree to float rounding (tested, with ``gradcheck``).
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from .encoders import mlp
+from .encoders import chunked, mlp
 
 __all__ = ["NearestMLP", "AttentionSubgraph", "AttentionPool", "RadiusMean", "nearest_others"]
 
+
+CHUNK_ROWS = 20_000
+"""(agent, other) rows :class:`_PoolKernel` processes at a time."""
 
 FAR = (0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 """Pair features of a missing neighbour: no offset, at the sensing edge, not moving, not self."""
@@ -72,6 +82,81 @@ def _gather_pairs(pair, idx, ok):
     rows = torch.gather(pair, 2, idx.unsqueeze(-1).expand(*idx.shape, F))
     far = torch.tensor(FAR, dtype=pair.dtype, device=pair.device)
     return torch.where(ok.unsqueeze(-1), rows, far)
+
+
+_relu_grad = torch.ops.aten.threshold_backward  # (grad, relu output, 0): grad where the output is > 0
+
+
+class _PoolKernel(torch.autograd.Function):
+    """``sum_s alpha_s relu(We x_s + be)`` over each agent's rows, a few worlds at a time.
+
+    ``apply(rows (B, N, S, F), select, W, b, w2, b2) -> (B, N, L)`` for rows that need no
+    gradient (observations). Two modes:
+
+    * attention (:class:`AttentionPool`): ``W`` (2L, F) and ``b`` (2L,) stack the score
+      MLP's first layer over the embedding; ``alpha`` is the softmax over the rows ``select``
+      (B, N, S) bool marks (``None``: all) of ``relu(W1 x + b1) . w2 + b2`` (zeros when none is marked);
+    * fixed weights (:class:`RadiusMean`): ``w2`` and ``b2`` are ``None``, ``W`` (L, F) is
+      the embedding and ``select`` (B, N, S) holds ``alpha`` itself.
+
+    Only the inputs are saved; the backward recomputes each chunk's forward before its
+    gradient, so every (rows, L) intermediate stays in the CPU cache.
+    """
+
+    @staticmethod
+    def _chunk(x, select, W_t, b, w2, b2):
+        bs, N, S, F = x.shape
+        h = torch.addmm(b, x.reshape(-1, F), W_t).relu_()                     # (r, 2L) or (r, L)
+        L = w2.shape[1] if w2 is not None else h.shape[1]
+        e = h[:, -L:].reshape(bs * N, S, L) if w2 is not None else h.view(bs * N, S, L)
+        if w2 is None:
+            return h, e, select.reshape(bs * N, S)
+        s = (h[:, :L] @ w2[0]).add_(b2).view(bs * N, S)
+        if select is not None:
+            s = s.masked_fill_(~select.reshape(bs * N, S), float("-inf"))
+        return h, e, torch.softmax(s, -1).nan_to_num_(nan=0.0)
+
+    @staticmethod
+    def forward(ctx, rows, select, W, b, w2, b2):
+        B, N, S, _ = rows.shape
+        step = max(1, CHUNK_ROWS // max(N * S, 1))
+        W_t = W.t().contiguous()
+        out = []
+        for s in range(0, B, step):
+            sl = slice(s, s + step)
+            _, e, alpha = _PoolKernel._chunk(rows[sl], None if select is None else select[sl], W_t, b, w2, b2)
+            out.append(torch.bmm(alpha.unsqueeze(1), e).view(-1, N, e.shape[-1]))
+        ctx.save_for_backward(rows, select, W, b, w2, b2)
+        ctx.step = step
+        return torch.cat(out)
+
+    @staticmethod
+    def backward(ctx, grad):
+        rows, select, W, b, w2, b2 = ctx.saved_tensors
+        B, N, S, F = rows.shape
+        W_t = W.t().contiguous()
+        gW, gb = torch.zeros_like(W), torch.zeros_like(b)
+        gw2 = None if w2 is None else torch.zeros_like(w2)
+        gb2 = None if b2 is None else torch.zeros_like(b2)
+        for s in range(0, B, ctx.step):
+            sl = slice(s, s + ctx.step)
+            x = rows[sl].reshape(-1, F)
+            h, e, alpha = _PoolKernel._chunk(rows[sl], None if select is None else select[sl], W_t, b, w2, b2)
+            L = e.shape[-1]
+            g = grad[sl].reshape(-1, 1, L)                                    # (bN, 1, L)
+            gh = torch.empty_like(h)
+            gh[:, -L:] = _relu_grad(alpha.unsqueeze(-1) * g, e, 0).reshape(-1, L)
+            if w2 is not None:
+                g_alpha = torch.bmm(e, g.transpose(1, 2)).squeeze(-1)          # (bN, S)
+                g_s = alpha * (g_alpha - (alpha * g_alpha).sum(-1, keepdim=True))
+                hs = h[:, :L]
+                g_s = g_s.reshape(-1)
+                gw2 += (hs.t() @ g_s).unsqueeze(0)
+                gb2 += g_s.sum()
+                gh[:, :L] = _relu_grad(g_s.unsqueeze(-1) * w2[0], hs, 0)
+            gW += gh.t() @ x
+            gb += gh.sum(0)
+        return None, None, gW, gb, gw2, gb2
 
 
 class NearestMLP(nn.Module):
@@ -125,6 +210,10 @@ class AttentionPool(nn.Module):
         self.embed = mlp([in_features, width], last_activation=True)
 
     def pool(self, rows: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
+        if chunked() and not rows.requires_grad:
+            first, out, embed = self.score[0], self.score[2], self.embed[0]
+            return _PoolKernel.apply(rows, mask, torch.cat([first.weight, embed.weight]),
+                                     torch.cat([first.bias, embed.bias]), out.weight, out.bias)
         s = self.score(rows).squeeze(-1)
         if mask is not None:
             s = s.masked_fill(~mask, float("-inf"))
@@ -150,5 +239,9 @@ class RadiusMean(nn.Module):
         N = pair.shape[1]
         # pair feature 2 is min(dist, SENSE) / SENSE: below 1 means within SENSE = 1 m, the one-hop radius
         near = (pair[..., 2] < 1.0) & alive.unsqueeze(1) & ~torch.eye(N, dtype=torch.bool, device=pair.device)
-        w = near.to(pair.dtype).unsqueeze(-1)
-        return (self.embed(pair) * w).sum(2) / w.sum(2).clamp(min=1.0)
+        w = near.to(pair.dtype)
+        w = w / w.sum(2, keepdim=True).clamp(min=1.0)
+        if chunked() and not pair.requires_grad:
+            embed = self.embed[0]
+            return _PoolKernel.apply(pair, w, embed.weight, embed.bias, None, None)
+        return (self.embed(pair) * w.unsqueeze(-1)).sum(2)
