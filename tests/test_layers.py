@@ -2,8 +2,9 @@
 
 Layers, lowest first: ``envs`` and ``config`` -> ``nets`` / ``planners`` -> ``algos`` /
 ``weights`` -> ``policies`` -> ``evaluation`` / ``training`` / ``viz`` / ``bench`` /
-``course`` -> ``cli``. A module may import its own package and anything in a lower
-layer; imports inside functions (lazy ones) count too.
+``course`` -> ``plan`` (the training plan, over training and evaluation) -> ``cli``. A module
+may import its own package and anything in a lower layer; imports inside functions (lazy
+ones) count too.
 """
 import ast
 import functools
@@ -12,7 +13,7 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "masp_lite"
-LAYER = {"envs": 0, "config": 0, "nets": 1, "planners": 1, "algos": 2, "weights": 2, "policies": 3,
+LAYER = {"envs": 0, "config": 0, "nets": 1, "planners": 1, "algos": 2, "weights": 2, "policies": 3, "plan": 5.5,
          "evaluation": 4, "training": 5, "viz": 5, "bench": 5, "course": 5, "cli": 6, "__main__": 7,
          "__init__": 7}
 

@@ -1,0 +1,343 @@
+"""The plan of ``reproduce --train``: every kept training run, retrained from random networks.
+
+Nothing here is a second copy of the recipes: the plan is read from the kept histories
+(``results/training/**/PRESET-seedK.manifest.json``, written by :func:`masp_lite.training.ship_run`).
+Each history lists its stages with the exact configuration, seed, scenario overrides, env
+steps and wall-clock on the machine that trained it; a stage that fine-tunes names the run
+folder it started from (``--init runs/X/weights.pt``), which is the ``--out`` of an earlier
+stage. A :class:`Run` is one history: its :class:`Stage` s (each with the index of the
+stage it starts from) and the evaluation records made from its weights (every record in
+``results/`` whose checkpoint is the run's weights file, or, for shipped weights, the
+records of the presets they serve). A history that cannot be replayed — a stage setting
+that has left the product, or a start from a file no stage of the history writes — is left
+out with the reason (:func:`read_plan`'s second list); its weights and records stay as they are.
+
+:func:`run_plan` trains each stage in ``runs/reproduce/stages/`` under a name that hashes
+the stage and everything it starts from, so two histories that share their first stages
+(drone-20 starts from drone-5's) train them once. A stage folder is a
+:func:`masp_lite.training.train` run folder: a killed plan resumes every stage from its
+last checkpoint and skips finished ones. A finished run's weights and history are shipped
+where the single-machine commands keep them (``results/training/...`` or
+``masp_lite/weights/``), then its records are re-made in place. Runs that share a stage
+form one task; tasks run in turn, or as Ray tasks (``ray`` installed: a local Ray on this
+machine's cores, or ``address`` of a running cluster whose workers see ``root`` and
+have this package installed), one task per worker with the stages' own thread counts. The
+same seeds give the same weights either way (tested).
+
+Why Ray: it is the ecosystem's way to spread independent Python jobs over cores and machines
+with resource requests (``num_cpus``) and no code of our own for workers or queues.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import shlex
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import torch
+
+from .config import TrainConfig
+from .envs import get_scenario
+from .evaluation import evaluate
+from .training import method_config, ship_run, train
+from .weights import atomic_write_bytes, base_scenario, sha256, trained_preset
+
+__all__ = ["Stage", "Run", "read_plan", "load_plan", "save_plan", "describe", "run_plan", "STAGES_DIR",
+           "RAY_INSTALL"]
+
+STAGES_DIR = "runs/reproduce/stages"
+"""Where the stages train, relative to the root (one resumable run folder each)."""
+RAY_INSTALL = ".venv/bin/pip install 'ray==2.60.0'   (or pip install '.[ray]')"
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One training stage: :func:`masp_lite.training.train` with these arguments."""
+
+    scenario: str
+    method: str
+    seed: int
+    config: dict
+    """The flat :class:`~masp_lite.config.TrainConfig`."""
+    overrides: dict
+    init: int | None
+    """Index (in the run) of the stage whose weights this one starts from; None: random networks."""
+    threads: int
+    env_steps: int
+    wall_clock_s: float
+    """As measured when the kept run was trained (its manifest)."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One kept history, retrained: its stages, where its weights go, the records made from them."""
+
+    name: str
+    """The history's path under ``results/training/`` without ``.manifest.json``, e.g. ``mappo/mpe-50-seed0``."""
+    stages: tuple
+    shipped: bool
+    """Whether the weights ship in ``masp_lite/weights/`` (else they are kept beside the history)."""
+    note: str | None
+    records: tuple
+    """Record paths relative to the root, re-made from the weights."""
+
+    @property
+    def env_steps(self) -> int:
+        return sum(s.env_steps for s in self.stages)
+
+    @property
+    def wall_clock_s(self) -> float:
+        return sum(s.wall_clock_s for s in self.stages)
+
+
+def _out_folder(command: str) -> str | None:
+    args = shlex.split(command)
+    return args[args.index("--out") + 1].rstrip("/") if "--out" in args else None
+
+
+def _method(training: dict) -> str:
+    if training.get("method"):
+        return training["method"]
+    cfg = training["config"]
+    return method_config(None, [f"{k}={cfg[k]}" for k in ("goal_matcher", "executor")], training.get("scenario"))[0]
+
+
+def _stages(history: dict) -> tuple:
+    """The stages of a kept history; ValueError says why it cannot be replayed."""
+    defaults = TrainConfig().flat()  # a setting added since a stage was trained had its default then
+    stages, outs = [], []
+    for k, st in enumerate(history["stages"]):
+        t = st["training"]
+        gone = sorted(set(t["config"]) - set(defaults))
+        if gone:
+            raise ValueError(f"stage {k + 1} uses settings since removed from the product: {', '.join(gone)}")
+        init = None
+        if t.get("init"):
+            folder = str(Path(t["init"]).parent)
+            found = [i for i, o in enumerate(outs) if o == folder]
+            if not found:
+                raise ValueError(f"stage {k + 1} starts from {t['init']}, which no earlier stage wrote")
+            init = found[-1]
+        outs.append(_out_folder(t["last_command"] if "last_command" in t else t["command"]))
+        config = {**defaults, **t["config"]}
+        stages.append(Stage(st["scenario"], _method({**t, "config": config, "scenario": st["scenario"]}),
+                            int(t["seed"]), config, dict(t.get("overrides", {})), init,
+                            int(t["machine"].get("torch_threads", 1)), int(t["env_steps"]),
+                            float(t["wall_clock_s"])))
+    return tuple(stages)
+
+
+def _records(root: Path, name: str, shipped_preset: str | None) -> tuple:
+    """Records in ``root/results`` made from this run's weights (relative paths)."""
+    target = f"results/training/{name}.pt"
+    out = []
+    for path in sorted((root / "results").rglob("*.json")):
+        rec = json.loads(path.read_text())
+        if not (isinstance(rec, dict) and {"method", "scenario", "seeds", "sr"} <= set(rec)):
+            continue
+        opts = rec.get("method_options", {})
+        mine = opts.get("checkpoint") == target if not shipped_preset else \
+            (not opts and rec["method"] == "masp" and trained_preset(rec["scenario"]) == shipped_preset)
+        if mine:
+            out.append(str(path.relative_to(root)))
+    return tuple(out)
+
+
+def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
+    """``(runs, left out)``: every kept history under ``root/results/training`` as a :class:`Run`,
+    and ``(name, reason)`` for each history that cannot be replayed."""
+    root = Path(root)
+    base = root / "results" / "training"
+    shipped = json.loads((root / "masp_lite/weights/manifest.json").read_text()) \
+        if (root / "masp_lite/weights/manifest.json").exists() else {}
+    shipped_by_history = {v["history"]: k for k, v in shipped.items() if not v.get("trained_on")}
+    runs, skipped = [], []
+    for path in sorted(base.rglob("*.manifest.json")):
+        name = str(path.relative_to(base))[: -len(".manifest.json")]
+        preset = shipped_by_history.get(str(path.relative_to(root)))
+        history = json.loads(path.read_text())
+        if preset is None and history.get("file") != f"{Path(name).name}.pt":
+            skipped.append((name, "its weights are neither kept beside it nor shipped"))
+            continue
+        try:
+            stages = _stages(history)
+        except ValueError as e:
+            skipped.append((name, str(e)))
+            continue
+        runs.append(Run(name, stages, preset is not None, history.get("note"), _records(root, name, preset)))
+    return runs, skipped
+
+
+def save_plan(runs, path) -> None:
+    """Write a plan as JSON (a list of runs), the form ``reproduce --train --plan FILE`` reads."""
+    atomic_write_bytes(path, (json.dumps([asdict(r) for r in runs], indent=1) + "\n").encode())
+
+
+def load_plan(path) -> list[Run]:
+    """A plan written by :func:`save_plan` (or by hand, in that form); one clear error otherwise."""
+    try:
+        data = json.loads(Path(path).read_text())
+        runs = [Run(**{**r, "stages": tuple(Stage(**s) for s in r["stages"]), "records": tuple(r["records"])})
+                for r in data]
+        for r in runs:
+            for s in r.stages:
+                TrainConfig.from_flat(s.config)
+                get_scenario(s.scenario)
+    except (OSError, ValueError, TypeError, KeyError) as e:
+        raise ValueError(f"--plan {path}: expected a JSON list of runs as save_plan writes them ({e})") from None
+    return runs
+
+
+def _key(run: Run, k: int) -> str:
+    """The stage folder's name: the preset, seed and a hash of the stage and all it starts from."""
+    chain, i = [], k
+    while i is not None:
+        s = run.stages[i]
+        chain.append([s.scenario, s.seed, s.config, s.overrides])
+        i = s.init
+    digest = hashlib.sha256(json.dumps(chain, sort_keys=True).encode()).hexdigest()[:10]
+    s = run.stages[k]
+    return f"{s.scenario}-seed{s.seed}-{digest}"
+
+
+def _tasks(runs) -> list[list[Run]]:
+    """Runs grouped so that runs sharing a stage are in one task (they run in turn there)."""
+    groups: list[tuple[set, list]] = []
+    for run in runs:
+        keys = {_key(run, k) for k in range(len(run.stages))}
+        touching = [g for g in groups if g[0] & keys]
+        merged = (keys.union(*(g[0] for g in touching)), [r for g in touching for r in g[1]] + [run])
+        groups = [g for g in groups if g not in touching] + [merged]
+    return [g[1] for g in groups]
+
+
+def _wall(runs) -> float:
+    """Wall-clock of training ``runs`` as kept, each shared stage counted once."""
+    return sum({_key(r, k): s.wall_clock_s for r in runs for k, s in enumerate(r.stages)}.values())
+
+
+def _lpt(durations, workers: int) -> float:
+    """Makespan of the longest-first schedule of ``durations`` on ``workers``."""
+    load = [0.0] * max(1, workers)
+    for d in sorted(durations, reverse=True):
+        load[load.index(min(load))] += d
+    return max(load)
+
+
+def describe(runs, skipped=(), workers: int = 1) -> str:
+    """The plan as text: each run's stages, env steps and wall-clock (as kept), the totals."""
+    lines = [f"{len(runs)} training runs ({sum(len(r.stages) for r in runs)} stages); wall-clock as measured when "
+             "the kept runs were trained here (2 cores, one run per core; older runs predate today's kernels):"]
+    for r in runs:
+        where = "masp_lite/weights/" if r.shipped else "results/training/"
+        lines.append(f"  {r.name:<28} {r.env_steps:>10,} env steps {r.wall_clock_s / 60:6.1f} min  -> {where}, "
+                     f"{len(r.records)} record(s)")
+        for k, s in enumerate(r.stages, 1):
+            start = "random networks" if s.init is None else f"stage {s.init + 1}"
+            lines.append(f"      {k}. {s.method} on {s.scenario}, seed {s.seed}, {s.config['updates']} iterations "
+                         f"x {s.config['num_envs']} worlds from {start}, {s.threads} thread(s)")
+    tasks = _tasks(runs)
+    lines.append(f"total: {_wall(runs) / 3600:.1f} h of training in turn (stages two runs share train once); "
+                 f"{_lpt([_wall(t) for t in tasks], workers) / 3600:.1f} h as {len(tasks)} task(s) on {workers} "
+                 "worker(s); the evaluations come on top")
+    for name, why in skipped:
+        lines.append(f"  left out: {name}: {why} (its weights and records stay as they are)")
+    return "\n".join(lines)
+
+
+def _train_stage(run: Run, k: int, root: Path, say) -> Path:
+    s = run.stages[k]
+    out = root / STAGES_DIR / _key(run, k)
+    if (out / "manifest.json").exists():
+        return out
+    init = None if s.init is None else _train_stage(run, s.init, root, say) / "weights.pt"
+    resume = (out / "state.pt").exists()
+    say(f"{run.name}: stage {k + 1}/{len(run.stages)} ({s.scenario}) {'resumed' if resume else 'started'} in {out}")
+    torch.set_num_threads(s.threads)
+    train(s.scenario, TrainConfig.from_flat(s.config), out, seed=s.seed, resume=resume, init=init,
+          overrides=s.overrides, progress=False, method=s.method,
+          command=f"python -m masp_lite reproduce --train --only {run.name}  # stage {k + 1}")
+    return out
+
+
+def _remake(root: Path, rel: str, weights: Path, shipped: bool) -> None:
+    rec = json.loads((root / rel).read_text())
+    opts = dict(rec.get("method_options", {}))
+    new = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
+                   overrides=rec.get("overrides"), num_envs=rec.get("num_envs"),
+                   method_options={**opts, "checkpoint": str(weights)})
+    if shipped:
+        new.pop("method_options")
+    else:
+        new["method_options"] = opts  # the checkpoint as the record names it, relative to the root
+    atomic_write_bytes(root / rel, (json.dumps(new, indent=2) + "\n").encode())
+
+
+def _run_task(task, root: str, say=print) -> list[str]:
+    """Train, ship and evaluate the runs of one task; returns their names. Skips finished runs."""
+    root = Path(root)
+    done = []
+    for run in task:
+        marker = root / STAGES_DIR / "done" / f"{run.name.replace('/', '__')}.json"
+        if marker.exists():
+            done.append(run.name)
+            continue
+        dirs = [_train_stage(run, k, root, say) for k in range(len(run.stages))]
+        history_dir = root / "results" / "training" / Path(run.name).parent
+        ship_run(dirs[-1], history_dir, root / "masp_lite" / "weights" if run.shipped else None,
+                 earlier=[(d / "manifest.json", d / "progress.csv") for d in dirs[:-1]], note=run.note)
+        preset = base_scenario(run.stages[-1].scenario)
+        weights = root / ("masp_lite/weights" if run.shipped else "results/training") / \
+            (f"{preset}.pt" if run.shipped else f"{run.name}.pt")
+        for rel in run.records:
+            say(f"{run.name}: evaluating {rel}")
+            _remake(root, rel, weights, run.shipped)
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_bytes(marker, json.dumps({"weights_sha256": sha256(weights)}).encode())
+        done.append(run.name)
+    return done
+
+
+def run_plan(runs, root, use_ray: bool | None = None, address: str | None = None, say=print) -> list[str]:
+    """Run the plan in ``root``; returns the names of the finished runs.
+
+    ``use_ray``: None uses Ray when it is installed (else the runs go in turn, and ``say``
+    tells how to install it), True requires it, False runs in turn. ``address``: a running
+    Ray cluster (default: a local Ray on this machine's cores)."""
+    root = Path(root).resolve()
+    tasks = _tasks(runs)
+    if use_ray is not False:
+        try:
+            import ray
+        except ImportError:
+            if use_ray:
+                raise ValueError(f"--ray: Ray is not installed; install it with {RAY_INSTALL}") from None
+            say(f"Ray is not installed: the {len(tasks)} task(s) run in turn. To run them side by side: {RAY_INSTALL}")
+        else:
+            return _run_on_ray(ray, tasks, root, address, say)
+    return [name for task in tasks for name in _run_task(task, str(root), say)]
+
+
+def _run_on_ray(ray, tasks, root: Path, address, say) -> list[str]:
+    started = not ray.is_initialized()
+    if started:
+        kwargs = {"address": address} if address else {"num_cpus": os.cpu_count()}
+        ray.init(include_dashboard=False, log_to_driver=False, **kwargs)
+    try:
+        say(f"Ray: {len(tasks)} task(s) on {ray.cluster_resources().get('CPU', 0):.0f} CPU(s)")
+        remote = ray.remote(_run_task)
+        refs = [remote.options(num_cpus=max(s.threads for r in t for s in r.stages)).remote(t, str(root), _quiet)
+                for t in tasks]
+        return [name for ref in refs for name in ray.get(ref)]
+    finally:
+        if started:
+            with contextlib.suppress(Exception):
+                ray.shutdown()
+
+
+def _quiet(message: str) -> None:
+    """What a Ray task says goes to its worker's log (the driver prints the task's result)."""
+    print(message, flush=True)

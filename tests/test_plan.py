@@ -1,0 +1,148 @@
+"""``reproduce --train``: the plan read from the kept histories, run in turn, resumed, and on Ray."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+
+from masp_lite import plan
+from masp_lite.config import TrainConfig
+from masp_lite.plan import Run, Stage, describe, load_plan, read_plan, run_plan, save_plan
+from masp_lite.weights import sha256
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_every_kept_history_is_planned_or_left_out_with_a_reason():
+    runs, skipped = read_plan(ROOT)
+    names = {r.name for r in runs} | {n for n, _ in skipped}
+    kept = {str(p.relative_to(ROOT / "results/training"))[: -len(".manifest.json")]
+            for p in (ROOT / "results/training").rglob("*.manifest.json")}
+    assert names == kept
+    assert all("removed from the product" in why or "wrote" in why for _, why in skipped)
+    by_name = {r.name: r for r in runs}
+    faithful = by_name["faithful/mpe-20-seed0"]
+    assert len(faithful.stages) == 1 and faithful.stages[0].config["updates"] == 150
+    assert "results/faithful/masp-seed0_mpe-50.json" in faithful.records  # zero-shot records follow the weights
+    drone = by_name["drone-20-seed0"]
+    assert drone.shipped and [s.init for s in drone.stages] == [None, 0, 0, 2]
+    assert {"results/omnidrones/masp_drone-20.json", "results/omnidrones-varying/masp_drone-20to10.json"} \
+        == set(drone.records)
+    # drone-20 starts from drone-5's first stage: one task, the shared stage trained once
+    tasks = plan._tasks([by_name["drone-5-seed0"], drone, faithful])
+    assert sorted(len(t) for t in tasks) == [1, 2]
+    text = describe(runs, skipped, workers=2)
+    assert "drone-20-seed0" in text and "left out: mpe-20-seed0" in text and "h of training in turn" in text
+
+
+def _tiny_run(seed: int, records=()) -> Run:
+    config = {**TrainConfig().flat(), "goal_matcher": "hungarian", "executor": "nearest", "num_envs": 2,
+              "updates": 6, "eval_every": 0, "eval_episodes": 2, "checkpoint_every": 2, "ppo_epochs": 1,
+              "gm_ppo_epochs": 1}
+    return Run(f"h-mappo/mpe-5-seed{seed}", (Stage("mpe-5", "h-mappo", seed, config, {}, None, 1, 540, 1.0),),
+               False, "a tiny test run", tuple(records))
+
+
+def _record(root: Path, seed: int) -> str:
+    rel = f"results/rl/h-mappo-seed{seed}_mpe-5.json"
+    (root / rel).parent.mkdir(parents=True, exist_ok=True)
+    weights = f"results/training/h-mappo/mpe-5-seed{seed}.pt"
+    (root / rel).write_text(json.dumps({"method": "h-mappo", "scenario": "mpe-5", "seeds": [0], "episodes_per_seed": 2,
+                                        "num_envs": 2, "sr": {"mean": 0.0, "std": 0.0},
+                                        "method_options": {"checkpoint": weights}}))
+    return rel
+
+
+def _weights(root: Path, name: str) -> dict:
+    return torch.load(root / "results/training" / f"{name}.pt", weights_only=True)["state_dict"]
+
+
+def _same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+@pytest.fixture(scope="module")
+def in_turn(tmp_path_factory):
+    """A two-run plan run in turn in a fresh root."""
+    root = tmp_path_factory.mktemp("in-turn")
+    runs = [_tiny_run(0, [_record(root, 0)]), _tiny_run(1)]
+    said = []
+    assert run_plan(runs, root, use_ray=False, say=said.append) == ["h-mappo/mpe-5-seed0", "h-mappo/mpe-5-seed1"]
+    return root, runs, said
+
+
+def test_a_plan_in_turn_ships_weights_histories_and_remakes_the_records(in_turn, monkeypatch):
+    root, runs, said = in_turn
+    history = json.loads((root / "results/training/h-mappo/mpe-5-seed0.manifest.json").read_text())
+    assert history["note"] == "a tiny test run" and history["stages"][0]["training"]["iterations"] == 6
+    rec = json.loads((root / "results/rl/h-mappo-seed0_mpe-5.json").read_text())
+    assert rec["method_options"] == {"checkpoint": "results/training/h-mappo/mpe-5-seed0.pt"}  # as named before
+    assert rec["checkpoint_sha256"] == sha256(root / "results/training/h-mappo/mpe-5-seed0.pt")
+    assert rec["episodes_per_seed"] == 2 and "steps" in rec and "cr" in rec
+    assert not _same(_weights(root, "h-mappo/mpe-5-seed0"), _weights(root, "h-mappo/mpe-5-seed1"))
+    assert any("started" in s for s in said)
+    # run again: everything is done, nothing trains
+    monkeypatch.setattr(plan, "train", lambda *a, **k: pytest.fail("a finished run trained again"))
+    assert run_plan(runs, root, use_ray=False, say=lambda m: None) == [r.name for r in runs]
+
+
+def test_a_killed_plan_resumes_to_the_same_weights(in_turn, tmp_path):
+    root, runs, _ = in_turn
+    plan_file = tmp_path / "plan.json"
+    slow = Run(runs[0].name, (Stage(**{**runs[0].stages[0].__dict__,
+                                       "config": {**runs[0].stages[0].config, "updates": 6}}),), False,
+               runs[0].note, ())
+    save_plan([slow], plan_file)
+    assert load_plan(plan_file) == [slow]
+    other = tmp_path / "root"
+    cmd = [sys.executable, "-m", "masp_lite", "reproduce", "--train", "--plan", str(plan_file), "--root", str(other),
+           "--in-turn"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, cwd=ROOT)
+    state = None
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None:
+        states = list((other / plan.STAGES_DIR).glob("*/state.pt"))
+        if states:
+            state = states[0]
+            break
+        time.sleep(0.05)
+    assert state is not None, proc.communicate()[0].decode()[-2000:]
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (other / "results/training/h-mappo/mpe-5-seed0.pt").exists()   # stopped before the end
+    done_before = torch.load(state, weights_only=False)["iterations"]
+    assert 0 < done_before < 6
+    out = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "resumed" in out.stdout
+    assert _same(_weights(other, runs[0].name), _weights(root, runs[0].name))
+
+
+def test_a_plan_on_a_local_ray_gives_the_weights_of_running_it_in_turn(in_turn, tmp_path):
+    pytest.importorskip("ray")
+    root, runs, _ = in_turn
+    other = tmp_path / "ray-root"
+    runs = [Run(r.name, r.stages, r.shipped, r.note, ()) for r in runs]  # the weights only
+    assert sorted(run_plan(runs, other, use_ray=True, say=lambda m: None)) == sorted(r.name for r in runs)
+    for r in runs:
+        assert _same(_weights(other, r.name), _weights(root, r.name))
+
+
+def test_bad_plans_and_options_are_one_clear_error(tmp_path, capsys):
+    from masp_lite.cli import main
+    bad = tmp_path / "plan.json"
+    bad.write_text('[{"name": "x"}]')
+    with pytest.raises(ValueError, match="expected a JSON list of runs"):
+        load_plan(bad)
+    assert main(["reproduce", "--dry-run"]) != 0
+    assert "go with --train" in capsys.readouterr().err
+    assert main(["reproduce", "--train", "--dry-run", "--only", "no-such-run"]) != 0
+    assert "no run of the plan matches" in capsys.readouterr().err
+    assert main(["reproduce", "--train", "--dry-run", "--only", "mappo/mpe-5"]) == 0
+    out = capsys.readouterr().out
+    assert "mappo/mpe-5-seed0" in out and "h-mappo/mpe-5-seed0" in out and "faithful" not in out.split("\n")[1]
