@@ -162,8 +162,10 @@ def test_reproduce_evaluates_each_table_a_claims_table_reads_once(monkeypatch):
     import masp_lite.cli.reproduce as cli
     calls = []
     monkeypatch.setattr(cli, "evaluate_records", lambda name, episodes, progress: calls.append(name) or [])
-    cli.run(argparse.Namespace(table=["ab", "ablation-claims", "drone-claims", "omnidrones"], format="text",
-                               evaluate=False, quick=True, records=None))
+    parser = argparse.ArgumentParser()
+    cli.add_arguments(parser)
+    cli.run(parser.parse_args(["--table", "ab", "--table", "ablation-claims", "--table", "drone-claims",
+                               "--table", "omnidrones", "--format", "text", "--quick"]))
     assert calls == ["ab", "groupsize", "globalsteps", "omnidrones", "omnidrones-varying"]
 
 
