@@ -31,7 +31,7 @@ from .evaluate import evaluate
 from .paper import PAPER
 from .tables import cell, render_rows
 
-__all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "pick", "pool", "training_seed",
+__all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "pick", "pool", "training_seed", "fill_blocks",
            "evaluate_records", "render", "build"]
 
 _MPE_COLUMNS = ("h-orca", "h-rrtstar", "h-voronoi", "h-mappo", "mappo", "darl1n", "htamp", "mage-x", "masp")
@@ -376,6 +376,53 @@ def _lowest_cr_row(records, sc: str, paper_table: dict, digits: int) -> list:
             mean["masp"] < mean[low]]
 
 
+def _rl_claims(records, add, paper_steps) -> None:
+    """The paper's claims about its RL baselines (section "Main Results", MPE), as rows of the claims table.
+
+    Each baseline's record is its kept training seeds (as in table "mpe"); a Steps of None (no
+    episode solved) counts as worse than any number. "fails" is SR below 0.5."""
+    rl = {sc: {m: pick(records, m, sc, f"{m}/") for m in _RL} for sc in _FIXED}
+    theirs = {sc: {m: PAPER["mpe"][(sc, m)] for m in _RL} for sc in _FIXED}
+
+    def steps_text(steps):
+        return "\\" if steps is None else f"{steps:.2f}"
+
+    for sc in _FIXED:
+        masp = _steps(pick(records, "masp", sc))
+        ours = {m: r for m, r in rl[sc].items() if r is not None}
+        best_paper = min(((paper_steps(sc, m), m) for m in _RL if paper_steps(sc, m) is not None))
+        solved = {m: _steps(r) for m, r in ours.items() if _steps(r) is not None}
+        best = min(solved, key=solved.get) if solved else None
+        text = "—" if masp is None or len(ours) < len(_RL) else \
+            f"{masp:.2f} vs " + (f"{_LABEL[best]} {solved[best]:.2f}" if best else "none solved")
+        add("MASP fewer Steps than every RL baseline", sc,
+            f"{paper_steps(sc, 'masp'):.2f} vs {_LABEL[best_paper[1]]} {best_paper[0]:.2f}", text,
+            None if text == "—" else all(masp < v for v in solved.values()))
+    sc = "mpe-50"
+    ours = rl[sc]
+    complete = all(r is not None for r in ours.values())
+    srs = ", ".join(f"{_LABEL[m]} {r['sr']['mean']:.2f}" for m, r in ours.items() if r is not None)
+    add("Only (H)MAPPO keeps SR ≥ 0.99 among the RL baselines", sc,
+        ", ".join(f"{_LABEL[m]} {t['sr'][0]:.2f}" for m, t in theirs[sc].items()), srs if complete else "—",
+        None if not complete else ours["h-mappo"]["sr"]["mean"] >= 0.99 and
+        all(r["sr"]["mean"] < 0.99 for m, r in ours.items() if m != "h-mappo"))
+    others = [m for m in _RL if m != "h-mappo"]
+    add("No RL baseline but (H)MAPPO completes an episode", sc,
+        ", ".join(f"{_LABEL[m]} {steps_text(t['steps'][0])}" for m, t in theirs[sc].items() if m != "h-mappo"),
+        ", ".join(f"{_LABEL[m]} {steps_text(_steps(ours[m]))}" for m in others) if complete else "—",
+        None if not complete else all(_steps(ours[m]) is None for m in others))
+    for m in ("mappo", "darl1n", "mage-x"):
+        r = ours[m]
+        add(f"{_LABEL[m]} fails (SR < 0.5)", sc, f"{theirs[sc][m]['sr'][0]:.2f}",
+            "—" if r is None else f"{r['sr']['mean']:.2f}", None if r is None else r["sr"]["mean"] < 0.5)
+    for base, target in (("h-mappo", 8.52), ("h-orca", 21.76)):
+        rec = ours.get(base) or pick(records, base, sc)
+        cut = _cut(_steps(rec), _steps(pick(records, "masp", sc)))
+        add(f"MASP ≥ {target} % fewer Steps than {_LABEL[base]}", sc,
+            f"{_cut(paper_steps(sc, base), paper_steps(sc, 'masp')):.1f} %",
+            "—" if cut is None else f"{cut:.1f} %", None if cut is None else cut >= target)
+
+
 def table_claims(records, latex=False) -> Table:
     """The paper's claims about MPE, each checked on our records: what the paper says, what we measured.
 
@@ -414,6 +461,7 @@ def table_claims(records, latex=False) -> Table:
         add("MASP fewer Steps than h-greedy (ours only)", sc, "",
             "—" if masp is None or hg is None else f"{masp:.2f} vs {hg:.2f}",
             None if masp is None or hg is None else masp < hg)
+    _rl_claims(records, add, paper_steps)
     for sc, target in [("mpe-50", 19.12), *((v, 47.87) for v in _VARYING)]:
         masp = _steps(pick(records, "masp", sc))
         rrt = _cut(_steps(pick(records, "h-rrtstar", sc)), masp)
@@ -571,3 +619,13 @@ def render(table: Table, fmt: str = "markdown") -> str:
     if fmt == "text":
         return "\n".join([caption, body, *table.notes])
     return "\n".join([f"**{caption}**", "", body, *([""] + [f"- {n}" for n in table.notes] if table.notes else [])])
+
+
+BLOCK = re.compile(r"(<!-- reproduce ([\w-]+) -->\n)(.*?)(\n<!-- /reproduce -->)", flags=re.S)
+"""A table kept in a Markdown file (README.md, results/*/README.md): ``<!-- reproduce NAME -->``, the
+table, ``<!-- /reproduce -->``."""
+
+
+def fill_blocks(text: str, records) -> str:
+    """``text`` with every ``<!-- reproduce NAME -->`` block replaced by table NAME in markdown, from ``records``."""
+    return BLOCK.sub(lambda m: m.group(1) + render(build(m.group(2), records), "markdown") + m.group(4), text)
