@@ -18,6 +18,7 @@ runs them one after the other. ``--only TEXT`` keeps the runs whose name contain
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from ..evaluation.reproduce import RESULTS_DIR, TABLES, build, evaluate_records, load_records, render
@@ -75,16 +76,21 @@ def _train(args) -> int:
         print(LEFT_AS_SHIPPED)
     if args.dry_run:
         return 0
-    done = run_plan(runs, root, use_ray=False if args.in_turn else None, address=args.address)
+    try:
+        done = run_plan(runs, root, use_ray=False if args.in_turn else None, address=args.address)
+    except KeyboardInterrupt:  # every stage keeps its last checkpoint: the same command goes on from there
+        print("\ninterrupted; run the same command again to resume (finished runs are skipped, the others go on "
+              "from their last checkpoint)", file=sys.stderr)
+        return 130
     print(f"{len(done)} run(s) trained, shipped and evaluated in {root}")
     return 0
 
 
 def run(args) -> int:
     if args.train:
-        _train(args)
-        if args.dry_run or args.plan:
-            return 0
+        status = _train(args)
+        if status or args.dry_run or args.plan:
+            return status
         args.records = str((Path(args.root) if args.root else RESULTS_DIR.parent) / "results")
     elif args.dry_run or args.only or args.plan or args.root or args.in_turn or args.address:
         raise ValueError("--dry-run, --only, --plan, --root, --in-turn and --address go with --train")
