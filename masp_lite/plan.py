@@ -314,7 +314,7 @@ def run_plan(runs, root, use_ray: bool | None = None, address: str | None = None
             import ray
         except ImportError:
             if use_ray:
-                raise ValueError(f"--ray: Ray is not installed; install it with {RAY_INSTALL}") from None
+                raise ValueError(f"Ray is not installed; install it with {RAY_INSTALL}") from None
             say(f"Ray is not installed: the {len(tasks)} task(s) run in turn. To run them side by side: {RAY_INSTALL}")
         else:
             return _run_on_ray(ray, tasks, root, address, say)

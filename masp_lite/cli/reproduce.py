@@ -64,6 +64,8 @@ def add_arguments(parser) -> None:
 
 
 def _train(args) -> int:
+    if args.in_turn and args.address:
+        raise ValueError("--in-turn and --address: expected one of them (in turn here, or on a Ray cluster)")
     root = Path(args.root) if args.root else RESULTS_DIR.parent
     runs, skipped = (load_plan(args.plan), []) if args.plan else read_plan(root)
     if args.only:
@@ -77,7 +79,8 @@ def _train(args) -> int:
     if args.dry_run:
         return 0
     try:
-        done = run_plan(runs, root, use_ray=False if args.in_turn else None, address=args.address)
+        done = run_plan(runs, root, use_ray=True if args.address else False if args.in_turn else None,
+                        address=args.address)
     except KeyboardInterrupt:  # every stage keeps its last checkpoint: the same command goes on from there
         print("\ninterrupted; run the same command again to resume (finished runs are skipped, the others go on "
               "from their last checkpoint)", file=sys.stderr)
