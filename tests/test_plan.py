@@ -141,6 +141,8 @@ def test_bad_plans_and_options_are_one_clear_error(tmp_path, capsys):
         load_plan(bad)
     assert main(["reproduce", "--dry-run"]) != 0
     assert "go with --train" in capsys.readouterr().err
+    assert main(["reproduce", "--train", "--in-turn", "--address", "ray://head:10001"]) != 0
+    assert "expected one of them" in capsys.readouterr().err
     assert main(["reproduce", "--train", "--dry-run", "--only", "no-such-run"]) != 0
     assert "no run of the plan matches" in capsys.readouterr().err
     assert main(["reproduce", "--train", "--dry-run", "--only", "mappo/mpe-5"]) == 0
