@@ -59,6 +59,15 @@ def test_evaluate_records_asks_for_every_registered_method(monkeypatch):
     assert len(records) == len(calls)
 
 
+def test_evaluate_records_runs_kept_weights_only_where_they_fly(monkeypatch):
+    calls = []
+    monkeypatch.setattr(rp, "evaluate", lambda m, sc, **kw: calls.append((m, sc, kw["method_options"])) or _rec(m, sc))
+    rp.evaluate_records("faithful", episodes=1)
+    kept = {sc for m, sc, opts in calls if opts}
+    assert kept == {"mpe-20", "mpe-50", "mpe-20to10", "mpe-50to20"}          # the mpe-20 weights: not on mpe-5
+    assert {sc for m, sc, opts in calls if not opts} == {"mpe-5", "mpe-20", "mpe-50", "mpe-20to10", "mpe-50to20"}
+
+
 def test_cli(tmp_path, capsys):
     assert main(["reproduce", "--table", "mpe-varying", "--format", "text"]) == 0
     assert "40.68 (3.37)" in capsys.readouterr().out
