@@ -190,17 +190,25 @@ def test_drone_claims_are_computed_from_the_records():
     assert rows[("No (H) planner reaches SR 1.00", "drone-20to10")][3:] == ["(H)ORCA 1.000", "no"]
 
 
-def test_reproduce_evaluates_each_table_a_claims_table_reads_once(monkeypatch):
+def test_reproduce_evaluates_each_distinct_run_once(monkeypatch, capsys):
+    """The faithful and MPE tables both read the shipped MASP on mpe-5; the claims read the MPE table's records."""
     import argparse
 
     import masp_lite.cli.reproduce as cli
     calls = []
-    monkeypatch.setattr(cli, "evaluate_records", lambda name, episodes, progress: calls.append(name) or [])
+
+    def fake(m, sc, **kw):
+        calls.append(json.dumps([m, sc, kw.get("method_options"), kw.get("num_envs")], sort_keys=True))
+        extra = {k: kw[k] for k in ("method_options", "num_envs") if kw.get(k)}
+        return _rec(m, sc, **extra)
+    monkeypatch.setattr(rp, "evaluate", fake)
     parser = argparse.ArgumentParser()
     cli.add_arguments(parser)
-    cli.run(parser.parse_args(["--table", "ab", "--table", "ablation-claims", "--table", "drone-claims",
-                               "--table", "omnidrones", "--format", "text", "--quick"]))
-    assert calls == ["ab", "groupsize", "globalsteps", "omnidrones", "omnidrones-varying"]
+    cli.run(parser.parse_args(["--table", "faithful", "--table", "mpe", "--table", "claims", "--format", "text",
+                               "--quick"]))
+    assert calls and len(calls) == len(set(calls))
+    assert calls.count(json.dumps(["masp", "mpe-5", {}, None], sort_keys=True)) == 1
+    assert "MPE, N = 5 / 20 / 50" in capsys.readouterr().out
 
 
 def test_readme_claims_are_the_ones_the_records_give():

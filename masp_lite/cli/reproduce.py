@@ -98,13 +98,8 @@ def run(args) -> int:
     elif args.dry_run or args.only or args.plan or args.root or args.in_turn or args.address:
         raise ValueError("--dry-run, --only, --plan, --root, --in-turn and --address go with --train")
     names = args.table or list(TABLES)
-    if args.evaluate or args.quick:  # each table's records once; the claims read them all
-        sources = {"claims": ["mpe", "mpe-varying", "per-step-time"],
-                   "drone-claims": ["omnidrones", "omnidrones-varying"],
-                   "ablation-claims": ["ab", "groupsize", "globalsteps"]}
-        needed = dict.fromkeys(t for name in names for t in sources.get(name, [name]))
-        records = [r for name in needed
-                   for r in evaluate_records(name, episodes=4 if args.quick else 100, progress=True)]
+    if args.evaluate or args.quick:  # each distinct evaluation once, however many tables read it
+        records = evaluate_records(names, episodes=4 if args.quick else 100, progress=True)
     else:
         records = load_records(args.records or RESULTS_DIR)
     for name in names:

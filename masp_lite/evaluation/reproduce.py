@@ -32,7 +32,7 @@ from .paper import PAPER
 from .tables import cell, render_rows
 
 __all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "pick", "pool", "training_seed", "fill_blocks",
-           "evaluate_records", "render", "build"]
+           "evaluation_jobs", "evaluate_records", "render", "build"]
 
 _MPE_COLUMNS = ("h-orca", "h-rrtstar", "h-voronoi", "h-mappo", "mappo", "darl1n", "htamp", "mage-x", "masp")
 _RL = ("h-mappo", "mappo", "darl1n", "htamp", "mage-x")
@@ -563,18 +563,16 @@ def _drone_weights(method: str, scenario: str) -> bool:
     return method == "masp" and base_scenario(scenario) in read_manifest()
 
 
-def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress: bool = False) -> list[dict]:
-    """Fresh records for ``table``'s cells: every registered method of its columns, with the shipped
-    weights, or with every kept training seed where a column reads kept weights (the RL baselines)."""
+def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:
+    """``(method, scenario, evaluate keyword arguments)`` of every fresh record ``table`` needs: every
+    registered method of its columns with the shipped weights, or with every kept training seed where
+    a column reads kept weights (the RL baselines, the ablations, the faithful recipe)."""
     if table not in TABLES:
         raise ValueError(f"unknown table {table!r}; expected one of {list(TABLES)}")
-    if table == "claims":  # every record the three tables read
-        return [r for t in ("mpe", "mpe-varying", "per-step-time")
-                for r in evaluate_records(t, episodes, seeds, progress)]
-    if table == "drone-claims":
-        return [r for t in ("omnidrones", "omnidrones-varying") for r in evaluate_records(t, episodes, seeds, progress)]
-    if table == "ablation-claims":
-        return [r for t in ABLATION_TABLES for r in evaluate_records(t, episodes, seeds, progress)]
+    sources = {"claims": ("mpe", "mpe-varying", "per-step-time"), "drone-claims": ("omnidrones", "omnidrones-varying"),
+               "ablation-claims": tuple(ABLATION_TABLES)}
+    if table in sources:  # every record the tables it checks read
+        return [job for t in sources[table] for job in evaluation_jobs(t)]
     if table == "faithful" or table in ABLATION_TABLES:  # kept training seeds of the source checkout
         columns = [("", "masp", ""), ("", "masp", FAITHFUL), ("", "h-bottleneck", "")] if table == "faithful" \
             else ABLATION_TABLES[table]
@@ -583,12 +581,10 @@ def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress:
             found = sorted((RESULTS_DIR / "training" / kept).glob("mpe-20-seed*.pt")) if kept else [None]
             runs += [(method, {} if k is None else {"checkpoint": f"results/training/{kept}{k.name}"}) for k in found]
         scenarios = _FIXED + _VARYING if table == "faithful" else ("mpe-20",)
-        return [evaluate(m, sc, episodes=episodes, seeds=list(seeds), progress=progress, method_options=opts)
-                for sc in scenarios for m, opts in runs
+        return [(m, sc, {"method_options": opts}) for sc in scenarios for m, opts in runs
                 if not opts or trained_preset(sc) == "mpe-20"]  # kept mpe-20 weights serve the presets they fly
     if table == "per-step-time":
-        return [evaluate(m, "mpe-50", episodes=episodes, seeds=list(seeds), num_envs=1, progress=progress)
-                for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
+        return [(m, "mpe-50", {"num_envs": 1}) for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
     scenarios = {"mpe": ("mpe-5", "mpe-20", "mpe-50"), "mpe-varying": ("mpe-20to10", "mpe-50to20"),
                  "omnidrones": ("drone-5", "drone-20"), "omnidrones-varying": ("drone-20to10",)}[table]
     columns = build(table, []).head[3:]  # the table's own columns, by label
@@ -602,12 +598,22 @@ def evaluate_records(table: str, episodes: int = 100, seeds=(0, 1, 2), progress:
             if not kept:  # the shipped method
                 if sc.startswith("drone") and _learned(m) and not _drone_weights(m, sc):
                     continue  # no drone weights in this checkout
-                runs.append((m, sc, {}))
+                runs.append((m, sc, {"method_options": {}}))
                 continue
             for k in sorted((RESULTS_DIR / "training" / kept).glob(f"{base_scenario(sc)}-seed*.pt")):
-                runs.append((m, sc, {"checkpoint": f"results/training/{kept}{k.name}"}))  # kept training seeds
-    return [evaluate(m, sc, episodes=episodes, seeds=list(seeds), progress=progress, method_options=opts)
-            for m, sc, opts in runs]
+                runs.append((m, sc, {"method_options": {"checkpoint": f"results/training/{kept}{k.name}"}}))
+    return runs
+
+
+def evaluate_records(tables, episodes: int = 100, seeds=(0, 1, 2), progress: bool = False) -> list[dict]:
+    """Fresh records for the cells of ``tables`` (a name or several, see :func:`evaluation_jobs`),
+    each distinct evaluation run once even when several tables read it."""
+    jobs = {}
+    for t in [tables] if isinstance(tables, str) else tables:
+        for m, sc, kw in evaluation_jobs(t):
+            jobs.setdefault(json.dumps([m, sc, kw], sort_keys=True), (m, sc, kw))
+    return [evaluate(m, sc, episodes=episodes, seeds=list(seeds), progress=progress, **kw)
+            for m, sc, kw in jobs.values()]
 
 
 def build(name: str, records, latex: bool = False) -> Table:
