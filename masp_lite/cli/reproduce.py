@@ -5,7 +5,8 @@ then the paper's claims checked on the same records (``--table claims``, ``drone
 ``ablation-claims``): from the records in ``results/`` (seconds), or ``--evaluate`` — every
 registered method of the table with its shipped weights, 3 seeds × 100 episodes (about 30
 minutes for "mpe" on one core, most of it the planners on mpe-50) — or ``--quick``, 3 seeds ×
-4 episodes (60 s for "mpe" on one core), for a first look and for tests.
+4 episodes (60 s for "mpe" on one core, 6.6 min for every table), for a first look and for tests. An
+evaluation that several tables read runs once.
 
 ``--train`` retrains every kept training run from random networks (:mod:`masp_lite.plan`:
 the plan is read from the kept histories; ``--dry-run`` prints it with each run's env
