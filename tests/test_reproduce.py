@@ -188,6 +188,13 @@ def test_drone_claims_are_computed_from_the_records():
     records.append(_rec("h-voronoi", "drone-20to10", 300.0))
     rows = {(r[0], r[1]): r for r in rp.build("drone-claims", records).rows}
     assert rows[("No (H) planner reaches SR 1.00", "drone-20to10")][3:] == ["(H)ORCA 1.000", "no"]
+    assert rows[("Every (H) planner SR > 0.90", "drone-20")][3:] == ["lowest (H)ORCA 1.000", "yes"]
+    assert rows[("MASP SR ≥ 0.94 zero-shot", "drone-20to10")][3:] == ["—", "—"]
+    five = [_rec("h-orca", "drone-5", 140.0), _rec("h-rrtstar", "drone-5", 150.0),
+            {**_rec("h-voronoi", "drone-5", 145.0), "sr": {"mean": 0.85, "std": 0.1}}]
+    rows = {(r[0], r[1]): r for r in rp.build("drone-claims", five).rows}
+    assert rows[("(H)Voronoi the best (H) planner (Steps)", "drone-5")][3:] == ["(H)ORCA 140.00", "no"]
+    assert rows[("Every (H) planner SR > 0.90", "drone-5")][3:] == ["lowest (H)Voronoi 0.850", "no"]
 
 
 def test_reproduce_evaluates_each_distinct_run_once(monkeypatch, capsys):
