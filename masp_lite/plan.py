@@ -42,6 +42,7 @@ import torch
 from .config import TrainConfig
 from .envs import get_scenario
 from .evaluation import evaluate
+from .evaluation.reproduce import load_records
 from .training import method_config, ship_run, train
 from .weights import atomic_write_bytes, base_scenario, sha256, trained_preset
 
@@ -130,19 +131,17 @@ def _stages(history: dict) -> tuple:
     return tuple(stages)
 
 
-def _records(root: Path, name: str, shipped_preset: str | None) -> tuple:
-    """Records in ``root/results`` made from this run's weights (relative paths)."""
+def _records(records, root: Path, name: str, shipped_preset: str | None) -> tuple:
+    """The records (from :func:`masp_lite.evaluation.load_records`) made from this run's weights, as paths
+    relative to ``root``; bench timings, which have no ``seeds``, are not re-made."""
     target = f"results/training/{name}.pt"
     out = []
-    for path in sorted((root / "results").rglob("*.json")):
-        rec = json.loads(path.read_text())
-        if not (isinstance(rec, dict) and {"method", "scenario", "seeds", "sr"} <= set(rec)):
-            continue
+    for rec in records:
         opts = rec.get("method_options", {})
         mine = opts.get("checkpoint") == target if not shipped_preset else \
             (not opts and rec["method"] == "masp" and trained_preset(rec["scenario"]) == shipped_preset)
-        if mine:
-            out.append(str(path.relative_to(root)))
+        if mine and "seeds" in rec:
+            out.append(str(Path(rec["path"]).resolve().relative_to(root.resolve())))
     return tuple(out)
 
 
@@ -154,6 +153,7 @@ def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
     shipped = json.loads((root / "masp_lite/weights/manifest.json").read_text()) \
         if (root / "masp_lite/weights/manifest.json").exists() else {}
     shipped_by_history = {v["history"]: k for k, v in shipped.items() if not v.get("trained_on")}
+    records = load_records(root / "results")
     runs, skipped = [], []
     for path in sorted(base.rglob("*.manifest.json")):
         name = str(path.relative_to(base))[: -len(".manifest.json")]
@@ -167,7 +167,7 @@ def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
         except ValueError as e:
             skipped.append((name, str(e)))
             continue
-        runs.append(Run(name, stages, preset is not None, history.get("note"), _records(root, name, preset)))
+        runs.append(Run(name, stages, preset is not None, history.get("note"), _records(records, root, name, preset)))
     return runs, skipped
 
 

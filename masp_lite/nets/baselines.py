@@ -45,7 +45,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from .encoders import chunked, mlp
+from .encoders import chunked, mlp, relu_grad
 
 __all__ = ["NearestMLP", "AttentionSubgraph", "AttentionPool", "RadiusMean", "nearest_others"]
 
@@ -82,9 +82,6 @@ def _gather_pairs(pair, idx, ok):
     rows = torch.gather(pair, 2, idx.unsqueeze(-1).expand(*idx.shape, F))
     far = torch.tensor(FAR, dtype=pair.dtype, device=pair.device)
     return torch.where(ok.unsqueeze(-1), rows, far)
-
-
-_relu_grad = torch.ops.aten.threshold_backward  # (grad, relu output, 0): grad where the output is > 0
 
 
 class _PoolKernel(torch.autograd.Function):
@@ -145,7 +142,7 @@ class _PoolKernel(torch.autograd.Function):
             L = e.shape[-1]
             g = grad[sl].reshape(-1, 1, L)                                    # (bN, 1, L)
             gh = torch.empty_like(h)
-            gh[:, -L:] = _relu_grad(alpha.unsqueeze(-1) * g, e, 0).reshape(-1, L)
+            gh[:, -L:] = relu_grad(alpha.unsqueeze(-1) * g, e, 0).reshape(-1, L)
             if w2 is not None:
                 g_alpha = torch.bmm(e, g.transpose(1, 2)).squeeze(-1)          # (bN, S)
                 g_s = alpha * (g_alpha - (alpha * g_alpha).sum(-1, keepdim=True))
@@ -153,7 +150,7 @@ class _PoolKernel(torch.autograd.Function):
                 g_s = g_s.reshape(-1)
                 gw2 += (hs.t() @ g_s).unsqueeze(0)
                 gb2 += g_s.sum()
-                gh[:, :L] = _relu_grad(g_s.unsqueeze(-1) * w2[0], hs, 0)
+                gh[:, :L] = relu_grad(g_s.unsqueeze(-1) * w2[0], hs, 0)
             gW += gh.t() @ x
             gb += gh.sum(0)
         return None, None, gW, gb, gw2, gb2

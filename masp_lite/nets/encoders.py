@@ -137,6 +137,10 @@ class SelfEncoder(nn.Module):
 CHUNK_ROWS = 10_000
 """(agent, goal) pairs :class:`_ScoreHead` processes at a time."""
 
+relu_grad = torch.ops.aten.threshold_backward
+"""``relu_grad(grad, relu_output, 0)``: ``grad`` where the ReLU's output is > 0 — the chunked kernels' ReLU
+backward (here, in :mod:`.fusion` and :mod:`.baselines`), faster than multiplying by a mask."""
+
 
 class _ScoreHead(torch.autograd.Function):
     """``relu(hq_k + hk_j + D_kj w_D) . w2 + b2`` for every (agent, goal) pair, chunked.
@@ -176,7 +180,7 @@ class _ScoreHead(torch.autograd.Function):
             h = _ScoreHead._hidden(hq[sl], hk[sl], dist[sl], wd)
             g = grad[sl]
             gw2 += (h.reshape(-1, L).t() @ g.reshape(-1)).unsqueeze(0)
-            gh = torch.ops.aten.threshold_backward(g.unsqueeze(-1) * w2[0], h, 0)  # ReLU's gradient
+            gh = relu_grad(g.unsqueeze(-1) * w2[0], h, 0)
             ghq[sl], ghk[sl] = gh.sum(2), gh.sum(1)
             gwd += (dist[sl].reshape(-1, C).t() @ gh.reshape(-1, L)).t()
         return ghq, ghk, None, gwd, gw2, grad.sum().reshape(1)

@@ -34,7 +34,7 @@ import math
 import torch
 from torch import nn
 
-from .encoders import chunked, mlp
+from .encoders import chunked, mlp, relu_grad
 
 __all__ = ["group_division", "gcn_layer", "GroupInformationFusion", "random_permutation"]
 
@@ -46,9 +46,6 @@ CHUNK_ROWS = 20_000
 def _linear_relu(x: torch.Tensor, weight_t: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
     """``relu(x @ weight_t + bias)`` for (..., F) rows: one ``addmm``, then ReLU in place."""
     return torch.addmm(bias, x.reshape(-1, x.shape[-1]), weight_t).relu_().view(*x.shape[:-1], weight_t.shape[1])
-
-
-_relu_grad = torch.ops.aten.threshold_backward  # (grad, relu output, 0): grad where the output is > 0
 
 
 class _OneLayerFusion(torch.autograd.Function):
@@ -115,16 +112,16 @@ class _OneLayerFusion(torch.autograd.Function):
             oa = None if others_alive is None else others_alive[sl]
             x_self, x_oth, h_self, h_oth, mf, count, a, z = _OneLayerFusion._chunk(pair[sl], groups[sl], oa,
                                                                                     We_t, be, Wg_t, bg)
-            gz = _relu_grad(grad[sl].unsqueeze(2) * weight[sl].unsqueeze(-1), z, 0).view(-1, L)
+            gz = relu_grad(grad[sl].unsqueeze(2) * weight[sl].unsqueeze(-1), z, 0).view(-1, L)
             gWg += (a.view(-1, L).t() @ gz).t()
             gbg += gz.sum(0)
             g_total = (gz @ Wg).view(z.shape).div_(count)                     # d loss / d (sum of members)
-            g_self = _relu_grad(g_total.sum(2, keepdim=True), h_self, 0).view(-1, L)
+            g_self = relu_grad(g_total.sum(2, keepdim=True), h_self, 0).view(-1, L)
             gWe += (x_self.reshape(-1, F).t() @ g_self).t()
             gbe += g_self.sum(0)
             for i in range(n - 1):
                 g_i = g_total if mf is None else g_total * mf[:, :, :, i]
-                g_i = _relu_grad(g_i, h_oth[:, :, :, i], 0).view(-1, L)
+                g_i = relu_grad(g_i, h_oth[:, :, :, i], 0).view(-1, L)
                 gWe += (x_oth[:, :, :, i].reshape(-1, F).t() @ g_i).t()
                 gbe += g_i.sum(0)
         return None, None, None, None, gWe, gbe, gWg, gbg
