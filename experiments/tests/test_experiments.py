@@ -175,3 +175,19 @@ def test_collect_labels_every_visited_state_and_fit_learns_the_labels(distill):
     before = distill.fit(nets, data, epochs=1, lr=0.0, seed=0)
     after = distill.fit(nets, data, epochs=40, lr=3e-3, seed=0)
     assert after < 0.5 * before
+
+
+def test_near_miss_prices_closing_passes_inside_the_zone_only():
+    from experiments.drone_nearmiss import near_miss
+    from masp_lite.envs.drone_model import COLLISION_RADIUS
+    alive = torch.ones(1, 3, dtype=torch.bool)
+    pos = torch.tensor([[[0.0, 0.0, 1.0], [0.8, 0.0, 1.0], [5.0, 5.0, 1.0]]])
+    towards = torch.tensor([[[3.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]])
+    p = near_miss(pos, towards, alive, zone=1.5)
+    d_c = 2 * COLLISION_RADIUS
+    expected = 1 - (0.8 - d_c) / (1.5 - d_c)                     # full closing speed (3 m/s = V)
+    assert torch.allclose(p, torch.tensor([[expected, expected, 0.0]]))
+    assert torch.equal(near_miss(pos, -towards, alive, zone=1.5), torch.zeros(1, 3))   # separating: free
+    assert torch.equal(near_miss(pos, towards, alive, zone=0.7), torch.zeros(1, 3))    # outside the zone
+    gone = torch.tensor([[True, False, True]])
+    assert torch.equal(near_miss(pos, towards, gone, zone=1.5), torch.zeros(1, 3))     # a crashed drone is no one
