@@ -191,3 +191,16 @@ def test_near_miss_prices_closing_passes_inside_the_zone_only():
     assert torch.equal(near_miss(pos, towards, alive, zone=0.7), torch.zeros(1, 3))    # outside the zone
     gone = torch.tensor([[True, False, True]])
     assert torch.equal(near_miss(pos, towards, gone, zone=1.5), torch.zeros(1, 3))     # a crashed drone is no one
+
+
+def test_crash_rows_describe_the_pair_at_the_step_before():
+    from experiments.drone_crashes import crash_rows
+    pos = torch.tensor([[[0.0, 0.0, 1.0], [0.5, 0.0, 1.2], [4.0, 4.0, 1.0]]])
+    vel = torch.tensor([[[2.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]])
+    prev = {"agent_pos": pos, "agent_vel": vel, "alive": torch.ones(1, 3, dtype=torch.bool)}
+    now = {"alive": torch.tensor([[False, False, True]])}
+    rows = crash_rows(prev, now, keep=1)
+    assert [(r["drone"], r["other"], r["both"]) for r in rows] == [(0, 1, True), (1, 0, True)]
+    assert rows[0]["horizontal"] == pytest.approx(0.5) and rows[0]["vertical"] == pytest.approx(0.2)
+    assert rows[0]["closing"] == pytest.approx(2.0 * 0.5 / np.hypot(0.5, 0.2))
+    assert crash_rows(prev, now, keep=0) == []                     # worlds past keep do not count
