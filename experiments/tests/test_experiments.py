@@ -204,3 +204,19 @@ def test_crash_rows_describe_the_pair_at_the_step_before():
     assert rows[0]["horizontal"] == pytest.approx(0.5) and rows[0]["vertical"] == pytest.approx(0.2)
     assert rows[0]["closing"] == pytest.approx(2.0 * 0.5 / np.hypot(0.5, 0.2))
     assert crash_rows(prev, now, keep=0) == []                     # worlds past keep do not count
+
+
+def test_inflate_builds_worlds_with_larger_spheres_and_undoes():
+    import mujoco
+
+    from experiments.drone_margin import inflate
+    from masp_lite.envs.drone_model import COLLISION_RADIUS
+
+    def hull(world):
+        return float(world.model.geom_size[mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_GEOM, "d0_hull"), 0])
+    undo = inflate(0.37)
+    try:
+        assert hull(make("drone-5", num_envs=1, seed=0)) == pytest.approx(0.37)
+    finally:
+        undo()
+    assert hull(make("drone-5", num_envs=1, seed=0)) == pytest.approx(COLLISION_RADIUS)
