@@ -74,8 +74,9 @@ def main(argv=None) -> int:
               f"{r['other_speed']:5.2f}  {'yes' if r['both'] else 'no ':>4}  {r['height']:.2f}")
     contact = [r for r in rows if r["dist"] < 2 * COLLISION_RADIUS + 0.2]
     flat_miss = [r for r in contact if r["vertical"] > args.flat]
+    median = float(np.median([r["vertical"] for r in contact])) if contact else float("nan")
     print(f"near another drone (centres < {2 * COLLISION_RADIUS + 0.2:.2f} m): {len(contact)}; of those, vertical "
-          f"separation > {args.flat} m: {len(flat_miss)}; median vertical {np.median([r['vertical'] for r in contact]) if contact else float('nan'):.2f} m")
+          f"separation > {args.flat} m: {len(flat_miss)}; median vertical {median:.2f} m")
     return 0
 
 

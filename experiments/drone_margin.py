@@ -14,7 +14,8 @@ keep that distance; the weights are then meant to fly the true world, with its 0
 spheres. The periodic validation rows printed here are in the training world (inflated
 spheres); evaluate the weights in the true world with::
 
-    python -m masp_lite evaluate --method masp --scenario drone-20 --checkpoint OUT/weights.pt --seeds 12345 --episodes 32
+    python -m masp_lite evaluate --method masp --scenario drone-20 --checkpoint OUT/weights.pt \
+        --seeds 12345 --episodes 32
 """
 from __future__ import annotations
 
@@ -51,7 +52,8 @@ def main(argv=None) -> int:
     p.add_argument("--resume", action="store_true")
     args = p.parse_args(argv)
     if not args.radius >= drone_model.COLLISION_RADIUS:
-        raise SystemExit(f"--radius: expected at least the true {drone_model.COLLISION_RADIUS:.2f} m, got {args.radius}")
+        raise SystemExit(f"--radius: expected at least the true {drone_model.COLLISION_RADIUS:.2f} m, "
+                         f"got {args.radius}")
     torch.set_num_threads(1)
     inflate(args.radius)
     method, cfg, overrides = method_config("masp", SETTINGS + [f"updates={args.updates}"], "drone-20")
