@@ -30,6 +30,8 @@ import masp_lite.envs.drones as drones
 from masp_lite.training import method_config, train
 
 SHIPPED = "masp_lite/weights/drone-20.pt"
+
+
 def inflate(radius: float):
     """Make the drone worlds built from now on use collision spheres of ``radius``; returns the undo."""
     true = drone_model.COLLISION_RADIUS
