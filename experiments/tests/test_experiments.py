@@ -220,3 +220,21 @@ def test_inflate_builds_worlds_with_larger_spheres_and_undoes():
     finally:
         undo()
     assert hull(make("drone-5", num_envs=1, seed=0)) == pytest.approx(COLLISION_RADIUS)
+
+
+@pytest.mark.parametrize("frame, crashed", [(False, True), (True, False)])
+def test_flat_frames_let_drones_pass_where_the_spheres_touch(frame, crashed):
+    """Two hovering drones 0.5 m apart across and 0.12 m in height: 0.514 m between centres, inside the spheres'
+    contact distance (0.54 m) but clear of two 6 cm-tall frames."""
+    from experiments.drone_frame import flat_frames
+    from masp_lite.envs.drone_model import HOVER_COMMAND
+
+    undo = flat_frames(0.03) if frame else (lambda: None)
+    try:
+        w = make("drone-5", num_envs=1, num_agents=2, seed=0)
+    finally:
+        undo()
+    pos = torch.tensor([[[0.0, 0.0, 1.5], [0.5, 0.0, 1.62]]], dtype=torch.float64)
+    w.reset(options={"agent_pos": pos})
+    w.step(torch.full((1, 2, 4), HOVER_COMMAND))
+    assert bool((~w.alive).any()) == crashed
