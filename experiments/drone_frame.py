@@ -29,20 +29,20 @@ WEIGHTS = {"drone-5": "masp_lite/weights/drone-5.pt", "drone-20": "masp_lite/wei
 def flat_frames(half_height: float):
     """Make drone worlds built from now on use a flat cylinder (radius ``COLLISION_RADIUS``, half-height
     ``half_height``) as each drone's collision shape instead of the sphere; returns the undo."""
-    true = drone_model._drone
+    true = drone_model.build_xml
     r = drone_model.COLLISION_RADIUS
     sphere = f'type="sphere" size="{r}"'
 
-    def frame(i: int):
-        body, actuators, sensors = true(i)
-        if sphere not in body:
-            raise RuntimeError(f"drone_frame: the drone model no longer has the hull {sphere!r}")
-        return body.replace(sphere, f'type="cylinder" size="{r} {half_height}"'), actuators, sensors
+    def frames(num_drones: int) -> str:
+        xml = true(num_drones)
+        if xml.count(sphere) != num_drones:
+            raise RuntimeError(f"drone_frame: expected one hull {sphere!r} per drone in the drone model")
+        return xml.replace(sphere, f'type="cylinder" size="{r} {half_height}"')
 
-    drone_model._drone = frame
+    drone_model.build_xml = frames   # read by build_model when a world is built
 
     def undo():
-        drone_model._drone = true
+        drone_model.build_xml = true
     return undo
 
 
