@@ -3,8 +3,8 @@
 Usage (from the repository root)::
 
     python -m experiments.drone_margin --radius 0.32 --out runs/exp-drone-margin32 [--updates 50]
-    python -m experiments.drone_margin --radius 0.32 --scenario drone-5 --init masp_lite/weights/drone-5.pt \
-        --num-envs 32 --updates 100 --out runs/exp-drone5-margin32
+    python -m experiments.drone_margin --radius 0.32 --scenario drone-5 --num-envs 32 --updates 100 \
+        --out runs/exp-drone5-margin32
 
 ``experiments.drone_crashes`` found that MASP's drones crash by grazing: two drones pass at
 exactly the contact distance of their collision spheres (2 x 0.27 m). The planners keep a
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import sys
 from pathlib import Path
 
 import torch
@@ -30,8 +31,7 @@ import torch
 import masp_lite.envs.drone_model as drone_model
 import masp_lite.envs.drones as drones
 from masp_lite.training import method_config, train
-
-SHIPPED = {"drone-5": "masp_lite/weights/drone-5.pt", "drone-20": "masp_lite/weights/drone-20.pt"}
+from masp_lite.weights import default_checkpoint
 
 
 def inflate(radius: float):
@@ -53,7 +53,7 @@ def main(argv=None) -> int:
     p.add_argument("--radius", type=float, required=True, help="collision sphere radius in training, metres")
     p.add_argument("--out", required=True)
     p.add_argument("--updates", type=int, default=50)
-    p.add_argument("--scenario", default="drone-20", choices=sorted(SHIPPED))
+    p.add_argument("--scenario", default="drone-20", choices=["drone-5", "drone-20"])
     p.add_argument("--init", help="weights to start from (default: the shipped ones of --scenario)")
     p.add_argument("--num-envs", type=int, default=16)
     p.add_argument("--resume", action="store_true")
@@ -65,9 +65,9 @@ def main(argv=None) -> int:
     inflate(args.radius)
     settings = SETTINGS + [f"updates={args.updates}", f"num_envs={args.num_envs}"]
     method, cfg, overrides = method_config("masp", settings, args.scenario)
-    train(args.scenario, cfg, args.out, seed=0, resume=args.resume, init=args.init or SHIPPED[args.scenario],
+    train(args.scenario, cfg, args.out, seed=0, resume=args.resume, init=args.init or default_checkpoint(args.scenario),
           overrides=overrides, progress=False, method=method,
-          command=f"python -m experiments.drone_margin --radius {args.radius} --scenario {args.scenario}")
+          command=" ".join(["python -m experiments.drone_margin", *(sys.argv[1:] if argv is None else argv)]))
     with open(Path(args.out) / "progress.csv") as f:
         for row in csv.DictReader(f):
             if row["eval_sr"]:
