@@ -3,6 +3,7 @@
 Usage (from the repository root)::
 
     python -m experiments.drone_crashes [--scenario drone-20] [--episodes 16] [--seed 12345] [--checkpoint PATH]
+        [--method masp-velocity]
 
 The world makes each drone a collision sphere of radius ``COLLISION_RADIUS`` (arm + rotor =
 0.27 m), so two drones crash whenever their centres come within 0.54 m, at any relative
@@ -54,11 +55,12 @@ def main(argv=None) -> int:
     p.add_argument("--episodes", type=int, default=16)
     p.add_argument("--seed", type=int, default=12345, help="evaluation seed (validation: not 0-2)")
     p.add_argument("--checkpoint", default=None)
+    p.add_argument("--method", default="masp", choices=("masp", "masp-velocity"))
     p.add_argument("--flat", type=float, default=0.1, help="vertical separation (m) above which flat frames miss")
     args = p.parse_args(argv)
     torch.set_num_threads(1)
     world = make(args.scenario, num_envs=min(args.episodes, 16))
-    policy = make_policy("masp", world, **({"checkpoint": args.checkpoint} if args.checkpoint else {}))
+    policy = make_policy(args.method, world, **({"checkpoint": args.checkpoint} if args.checkpoint else {}))
     rows, last = [], {}
 
     def on_step(obs, keep):

@@ -30,7 +30,7 @@ GM_REFERENCES = ("distance", "squared", "bottleneck")
 """The settings of :attr:`RewardConfig.gm_reference`."""
 GOAL_MATCHERS = ("graph", "mlp", "random", "hungarian", "none")
 EXECUTORS = ("graph", "mlp", "nearest", "subgraph", "attention", "radius")
-ACTIONS = ("discrete", "throttle")
+ACTIONS = ("discrete", "throttle", "velocity")
 """The settings of :attr:`NetConfig.goal_matcher`, :attr:`NetConfig.executor` and :attr:`NetConfig.action`."""
 
 
@@ -78,7 +78,8 @@ class NetConfig:
     action: str = "discrete"
     """What the executor outputs, and so which world the networks are for: ``discrete``, one of
     MPE's 5 actions (particle worlds); ``throttle``, the 4 motor commands of a drone (the paper's
-    drone action), a Gaussian (:mod:`masp_lite.nets.drones`)."""
+    drone action), or ``velocity``, a velocity set-point the geometric controller flies (the
+    variant ``masp-velocity``); both drone actions are Gaussian (:mod:`masp_lite.nets.drones`)."""
     log_std_init: float = -1.6
     """Initial log standard deviation of the drone executor's Gaussian (per action dimension)."""
 

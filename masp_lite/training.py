@@ -105,9 +105,10 @@ def _layout(arch: dict) -> dict:
 
 
 def _drone_method_config(method, sets, scenario) -> tuple[str, TrainConfig, dict]:
-    """:func:`method_config` for a drone scenario: ``masp``, with motor commands."""
+    """:func:`method_config` for a drone scenario: ``masp`` (motor commands) or ``masp-velocity``."""
     given = dict(s.split("=", 1) for s in sets if "=" in s)
-    method = method or "masp"
+    if method is None:
+        method = "masp-velocity" if given.get("action") == "velocity" else "masp"
     if method not in DRONE_METHODS:
         raise ValueError(f"train --method {method}: drone scenarios ({scenario!r}) train {sorted(DRONE_METHODS)}")
     action = DRONE_METHODS[method]

@@ -282,4 +282,4 @@ def test_bench_train_has_a_drone_row(tmp_path):
     args = ["--scenarios", "drone-5", "--worlds", "2", "--threads", "1", "--json", str(out)]
     assert main(["bench", "train", *args]) == 0
     rows = json.loads(out.read_text())["env_steps_per_s"]["drone-5"]
-    assert set(rows) == {"masp", "masp (plain autograd)"} and all(v > 0 for v in rows.values())
+    assert set(rows) == {"masp", "masp-velocity", "masp (plain autograd)"} and all(v > 0 for v in rows.values())

@@ -7,8 +7,16 @@ import torch
 from masp_lite.algos.drone_trainer import DroneMASPTrainer, crash_charge
 from masp_lite.config import NetConfig
 from masp_lite.envs import make
-from masp_lite.envs.drone_model import HOVER_COMMAND
-from masp_lite.nets.drones import DroneNets, drone_state_features, gaussian_entropy, gaussian_log_prob
+from masp_lite.envs.drone_model import CONTROL_DT, HOVER_COMMAND
+from masp_lite.nets.drones import (
+    DRONE_SPEED,
+    DroneNets,
+    drone_state_features,
+    gaussian_entropy,
+    gaussian_log_prob,
+    motor_commands,
+    velocity_controller,
+)
 from masp_lite.policies import make_policy
 from masp_lite.training import method_config, train
 from masp_lite.weights import load_weights, save_weights
@@ -38,6 +46,32 @@ def test_untrained_executor_asks_for_hover_and_runs_any_team_size():
     st = drone_state_features(obs)
     assert st.shape == (2, 20, 17)
     assert torch.allclose(st[..., :9], torch.eye(3).flatten().expand(2, 20, 9), atol=1e-6)  # level at reset
+
+
+def test_velocity_executor_starts_still():
+    nets = DroneNets(NetConfig(action="velocity", width=8))
+    world = make("drone-5", num_envs=1, seed=0)
+    obs = world.reset()
+    mean, _ = nets.cae_logits(nets.cae_inputs(obs, torch.arange(5)[None], torch.arange(5)[None]))
+    assert mean.shape == (1, 5, 3) and mean.abs().max() < 0.05
+
+
+def test_velocity_actions_are_flown_by_the_controller():
+    world = make("drone-5", num_envs=1, seed=0)
+    obs = world.reset()
+    wild = torch.full((1, 5, 4), 3.0)
+    assert torch.equal(motor_commands(wild, obs), torch.ones(1, 5, 4))        # throttle: clipped, nothing more
+    controller = velocity_controller()
+    ask = torch.zeros(1, 5, 3)
+    ask[0, 0] = torch.tensor([2.0, 0.0, 0.0])                                 # clipped to 1: DRONE_SPEED along x
+    start = obs["agent_pos"].clone()
+    for _ in range(40):
+        cmd = motor_commands(ask, obs, controller)
+        assert cmd.shape == (1, 5, 4) and cmd.abs().max() <= 1
+        obs, _ = world.step(cmd)
+    moved = obs["agent_pos"] - start
+    assert moved[0, 0, 0] > 0.3 * DRONE_SPEED * 40 * CONTROL_DT and moved[0, 0, 1:].abs().max() < 0.3
+    assert moved[0, 1:].abs().max() < 0.1 and bool(obs["alive"].all())   # asked to stay: they hover
 
 
 def test_crash_charge_makes_crashing_no_better_than_hovering():
@@ -81,7 +115,7 @@ def test_a_drone_run_trains_resumes_and_is_deterministic(tmp_path):
 
 
 def test_the_drone_trainer_learns_the_goal_matcher_too():
-    _, cfg, _ = method_config("masp", TINY, "drone-5")
+    _, cfg, _ = method_config("masp-velocity", TINY, "drone-5")
     tr = DroneMASPTrainer("drone-5", cfg, seed=0)
     row = tr.iteration()
     assert math.isfinite(row["gm_policy_loss"]) and math.isfinite(row["cae_policy_loss"])
@@ -97,6 +131,8 @@ def test_policy_flies_shipped_shapes_and_refuses_the_wrong_weights(tmp_path):
     a = policy.act(obs)
     assert a.shape == (3, 5, 4) and a.dtype == torch.float32 and a.abs().max() <= 1
     world.step(a)
+    with pytest.raises(ValueError, match="masp-velocity|expected 'velocity'"):
+        make_policy("masp-velocity", world, checkpoint=str(path))
     with pytest.raises(ValueError, match="drone-world networks.*particle world"):
         make_policy("masp", make("mpe-5", num_envs=1), checkpoint=str(path))
     particle = tmp_path / "particle.pt"
@@ -108,7 +144,7 @@ def test_policy_flies_shipped_shapes_and_refuses_the_wrong_weights(tmp_path):
 
 @pytest.mark.parametrize("method, sets, match", [
     ("h-mappo", [], "drone scenarios .* train"),
-    ("masp", ["action=discrete"], "makes another one"),
+    ("masp", ["action=velocity"], "makes another one"),
     (None, ["goal_matcher=random"], "goal_matcher 'graph' or 'hungarian'"),
 ])
 def test_bad_drone_training_settings_are_one_clear_error(method, sets, match):

@@ -180,6 +180,13 @@ def test_drone_claims_are_computed_from_the_records():
     rows = {(r[0], r[1]): r for r in rp.build("drone-claims", records).rows}
     assert rows[("MASP SR ≥ 0.95", "drone-20")][3:] == ["1.000", "yes"]
     assert rows[("MASP SR ≥ 0.99", "drone-5")][3:] == ["—", "—"]
+    assert rows[("MASP (velocity) SR ≥ 0.95", "drone-20")][3:] == ["—", "—"]   # the variant: its own rows
+    velocity = {(r[0], r[1]): r for r in rp.build("drone-claims", records + [
+        {**_rec("masp-velocity", "drone-20", 350.0), "sr": {"mean": 0.96, "std": 0.1}}]).rows}
+    assert velocity[("MASP (velocity) SR ≥ 0.95", "drone-20")][3:] == ["0.960", "yes"]
+    assert velocity[("MASP (velocity) fewer Steps than every (H) planner", "drone-20")][3:] == \
+        ["350.00 vs (H)RRT* 400.00", "yes"]
+    assert velocity[("MASP SR ≥ 0.95", "drone-20")][3:] == ["1.000", "yes"]              # MASP's rows unchanged
     assert rows[("MASP fewer Steps than every (H) planner", "drone-20")][3:] == ["300.00 vs (H)RRT* 400.00", "yes"]
     cut = rows[("MASP ≥ 27.92 % fewer Steps than the best (H) planner", "drone-20")]
     assert cut[2:] == ["27.9 %", "25.0 %", "no"]                  # (400 - 300) / 400, below the paper's cut

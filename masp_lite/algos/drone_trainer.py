@@ -7,7 +7,9 @@ storage, GAE, PPO on both levels, checkpoints and resume) with a drone rollout:
    (``goal_matcher="graph"``, trained on R_GM against the 3-D Hungarian assignment) or takes
    the Hungarian assignment (``goal_matcher="hungarian"``: an executor-only curriculum stage);
 2. the executor (:class:`~masp_lite.nets.drones.DroneExecutor`) samples a Gaussian action per
-   drone; the clipped sample is its 4 motor commands (the paper's drone action);
+   drone; the clipped sample is 4 motor commands (``action="throttle"``, the paper's) or a
+   velocity set-point that :class:`~masp_lite.planners.geometric.LeeController` turns into
+   motor commands (``action="velocity"``);
 3. R_CAE (eq. 5, :func:`~masp_lite.algos.rewards.executor_reward`) in 3-D, where a contact,
    a floor touch or leaving the flight volume is the collision (the world's
    ``agent_collisions``), and **a crash ends the drone**: it is out of the episode (the
@@ -24,7 +26,7 @@ from __future__ import annotations
 import torch
 
 from ..nets.decoding import sequential_sample
-from ..nets.drones import gaussian_log_prob
+from ..nets.drones import gaussian_log_prob, motor_commands, velocity_controller
 from .assignment import hungarian_goals
 from .mappo import RolloutStorage
 from .masp_trainer import MASPTrainer
@@ -42,7 +44,7 @@ def crash_charge(dist: torch.Tensor, crashed: torch.Tensor, steps_left: int, wor
 
 
 class DroneMASPTrainer(MASPTrainer):
-    """MASP on a drone scenario (``NetConfig.action="throttle"``)."""
+    """MASP on a drone scenario (``NetConfig.action`` ``throttle`` or ``velocity``)."""
 
     distribution = "gaussian"
 
@@ -51,6 +53,7 @@ class DroneMASPTrainer(MASPTrainer):
         if self.random_goals or self.goal_free:
             raise ValueError(f"drone training: expected goal_matcher 'graph' or 'hungarian', got "
                              f"{cfg.net.goal_matcher!r}")
+        self.controller = velocity_controller() if cfg.net.action == "velocity" else None
 
     @torch.inference_mode()
     def collect(self):
@@ -78,7 +81,7 @@ class DroneMASPTrainer(MASPTrainer):
             actions = mean + log_std.exp() * torch.randn(mean.shape, generator=g, dtype=mean.dtype)
             logp = gaussian_log_prob(mean, log_std, actions)
             alive = obs["alive"].clone()
-            obs, info = w.step(actions.clamp(-1.0, 1.0))
+            obs, info = w.step(motor_commands(actions, obs, self.controller))
             goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand(B, N, 3))
             r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
                                 w.scenario.world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)

@@ -3,8 +3,8 @@
 One environment step is one step of one world (all its agents), the unit of every training
 budget in the manifests. For each scenario (``mpe-20``, ``mpe-50`` and ``drone-20`` by default) and each
 method — on particle worlds MASP and the RL baselines, :data:`METHODS`; on drone worlds MASP with motor
-commands, :data:`DRONE_METHODS` (MuJoCo then steps the worlds with ``mujoco.batch`` on ``--threads``
-threads too) — the trainer is built with the from-scratch recipe
+commands and ``masp-velocity``, :data:`DRONE_METHODS` (MuJoCo then steps the worlds with
+``mujoco.batch`` on ``--threads`` threads too) — the trainer is built with the from-scratch recipe
 (:data:`masp_lite.config.FROM_SCRATCH`, ``--worlds`` worlds instead of its 32), one iteration
 (an episode in every world, then PPO on both levels) warms up, and ``--iterations``
 iterations are timed with ``time.perf_counter``, with ``--threads`` torch threads.

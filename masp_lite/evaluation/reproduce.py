@@ -225,10 +225,11 @@ def table_mpe_varying(records, latex=False) -> Table:
 
 
 def table_omnidrones(records, latex=False) -> Table:
-    """Table "OmniDrones" (N = 5, 20): the paper's columns, then ours only: h-greedy and h-bottleneck.
-    The RL baselines' columns keep the paper's cells; they are not trained on drones here."""
+    """Table "OmniDrones" (N = 5, 20): the paper's columns, then ours only: MASP whose executor asks the
+    geometric controller for a velocity (``masp-velocity``), h-greedy and h-bottleneck. The RL
+    baselines' columns keep the paper's cells; they are not trained on drones here."""
     methods = ("h-orca", "h-rrtstar", "h-voronoi", *_RL, "masp")
-    columns = _columns((*methods, "h-greedy", "h-bottleneck"))
+    columns = _columns(methods) + [("MASP (velocity)", "masp-velocity", "")] + _columns(("h-greedy", "h-bottleneck"))
     return _metric_table("omnidrones", "OmniDrones, N = 5 / 20", ("drone-5", "drone-20"), columns, records, latex,
                          paper=lambda sc, i: PAPER["omnidrones"].get((sc, columns[i][1])) if i < len(methods)
                          else None)
@@ -236,7 +237,8 @@ def table_omnidrones(records, latex=False) -> Table:
 
 def table_omnidrones_varying(records, latex=False) -> Table:
     """Table "OmniDrones, varying team size" (20 => 10, zero-shot from the drone-20 weights)."""
-    columns = _columns(("h-orca", "h-rrtstar", "h-voronoi", "masp", "h-greedy", "h-bottleneck"))
+    columns = _columns(("h-orca", "h-rrtstar", "h-voronoi", "masp")) + [("MASP (velocity)", "masp-velocity", "")] \
+        + _columns(("h-greedy", "h-bottleneck"))
     return _metric_table("omnidrones-varying", "OmniDrones, varying team size", ("drone-20to10",), columns, records,
                          latex, paper=lambda sc, i: PAPER["omnidrones-varying"].get((sc, columns[i][1])))
 
@@ -499,6 +501,10 @@ def table_claims(records, latex=False) -> Table:
                  ["Claim", "Scenario", "paper", "ours", "holds"], rows)
 
 
+_DRONE_MASP = (("MASP", "masp"), ("MASP (velocity)", "masp-velocity"))
+"""The learned drone methods whose claims :func:`table_drone_claims` checks: (label, method)."""
+
+
 def table_drone_claims(records, latex=False) -> Table:
     """The paper's claims about OmniDrones, each checked on our drone records.
 
@@ -508,8 +514,10 @@ def table_drone_claims(records, latex=False) -> Table:
     give it, (best planner − MASP) / best planner, the same as the MPE cuts — the lowest CR, and
     at 20 => 10 "the planning-based baselines fail to reach a 100 % Success Rate" and MASP's 94 %;
     the planners' SR over 90 % and (H)Voronoi the best of them at N = 5. The paper's RL baselines are
-    not trained on drones here, so their drone claims are not checked. "holds" is "yes", "no", or
-    "—" when a record is missing."""
+    not trained on drones here, so their drone claims are not checked. MASP's claims are checked for
+    the paper's executor (motor commands, ``masp``) and for the variant whose executor asks the geometric
+    controller for a velocity (``masp-velocity``), each against the paper's MASP. "holds" is "yes",
+    "no", or "—" when a record is missing."""
     rows = []
 
     def add(claim, sc, paper, ours, holds):
@@ -519,26 +527,28 @@ def table_drone_claims(records, latex=False) -> Table:
         table = "omnidrones-varying" if sc == "drone-20to10" else "omnidrones"
         return PAPER[table][(sc, m)][key][0]
 
-    for sc, bar in (("drone-5", 0.99), ("drone-20", 0.95)):
-        masp = pick(records, "masp", sc)
-        sr = None if masp is None else masp["sr"]["mean"]
-        add(f"MASP SR ≥ {bar:.2f}", sc, f"{paper_of(sc, 'masp', 'sr'):.2f}", "—" if sr is None else f"{sr:.3f}",
-            None if sr is None else sr >= bar)
-    for sc in ("drone-5", "drone-20", "drone-20to10"):
-        masp = _steps(pick(records, "masp", sc))
-        known = {m: v for m in _PLANNERS if (v := _steps(pick(records, m, sc))) is not None}
-        best = min(known, key=known.get) if known else None
-        paper = {m: paper_of(sc, m, "steps") for m in _PLANNERS if paper_of(sc, m, "steps") is not None}
-        paper_best = min(paper, key=paper.get)
-        add("MASP fewer Steps than every (H) planner", sc,
-            f"{paper_of(sc, 'masp', 'steps'):.2f} vs {_LABEL[paper_best]} {paper[paper_best]:.2f}",
-            "—" if masp is None or best is None else f"{masp:.2f} vs {_LABEL[best]} {known[best]:.2f}",
-            None if masp is None or len(known) < len(_PLANNERS) else masp < known[best])
-        if sc == "drone-20":
-            cut = None if masp is None or len(known) < len(_PLANNERS) else _cut(known[best], masp)
-            add("MASP ≥ 27.92 % fewer Steps than the best (H) planner", sc,
-                f"{_cut(paper[paper_best], paper_of(sc, 'masp', 'steps')):.1f} %",
-                "—" if cut is None else f"{cut:.1f} %", None if cut is None else cut >= 27.92)
+    for name, method in _DRONE_MASP:
+        for sc, bar in (("drone-5", 0.99), ("drone-20", 0.95)):
+            masp = pick(records, method, sc)
+            sr = None if masp is None else masp["sr"]["mean"]
+            add(f"{name} SR ≥ {bar:.2f}", sc, f"{paper_of(sc, 'masp', 'sr'):.2f}",
+                "—" if sr is None else f"{sr:.3f}", None if sr is None else sr >= bar)
+    for name, method in _DRONE_MASP:
+        for sc in ("drone-5", "drone-20", "drone-20to10"):
+            masp = _steps(pick(records, method, sc))
+            known = {m: v for m in _PLANNERS if (v := _steps(pick(records, m, sc))) is not None}
+            best = min(known, key=known.get) if known else None
+            paper = {m: paper_of(sc, m, "steps") for m in _PLANNERS if paper_of(sc, m, "steps") is not None}
+            paper_best = min(paper, key=paper.get)
+            add(f"{name} fewer Steps than every (H) planner", sc,
+                f"{paper_of(sc, 'masp', 'steps'):.2f} vs {_LABEL[paper_best]} {paper[paper_best]:.2f}",
+                "—" if masp is None or best is None else f"{masp:.2f} vs {_LABEL[best]} {known[best]:.2f}",
+                None if masp is None or len(known) < len(_PLANNERS) else masp < known[best])
+            if sc == "drone-20":
+                cut = None if masp is None or len(known) < len(_PLANNERS) else _cut(known[best], masp)
+                add(f"{name} ≥ 27.92 % fewer Steps than the best (H) planner", sc,
+                    f"{_cut(paper[paper_best], paper_of(sc, 'masp', 'steps')):.1f} %",
+                    "—" if cut is None else f"{cut:.1f} %", None if cut is None else cut >= 27.92)
     for sc in ("drone-5", "drone-20"):
         add(*_lowest_cr_row(records, sc, PAPER["omnidrones"], 4))
     for sc in ("drone-5", "drone-20"):  # "most planning-based baselines achieve over 90 % Success Rate"
@@ -555,9 +565,11 @@ def table_drone_claims(records, latex=False) -> Table:
         "—" if len(known) < len(_PLANNERS) else f"{_LABEL[best]} {known[best]:.2f}",
         None if len(known) < len(_PLANNERS) else best == "h-voronoi")
     sc = "drone-20to10"
-    masp = pick(records, "masp", sc)
-    add("MASP SR ≥ 0.94 zero-shot", sc, f"{paper_of(sc, 'masp', 'sr'):.2f}",
-        "—" if masp is None else f"{masp['sr']['mean']:.3f}", None if masp is None else masp["sr"]["mean"] >= 0.94)
+    for name, method in _DRONE_MASP:
+        masp = pick(records, method, sc)
+        add(f"{name} SR ≥ 0.94 zero-shot", sc, f"{paper_of(sc, 'masp', 'sr'):.2f}",
+            "—" if masp is None else f"{masp['sr']['mean']:.3f}",
+            None if masp is None else masp["sr"]["mean"] >= 0.94)
     srs = {m: r["sr"]["mean"] for m in _PLANNERS if (r := pick(records, m, sc)) is not None}
     paper_top = max(_PLANNERS, key=lambda m: paper_of(sc, m, "sr"))
     top = max(srs, key=srs.get) if srs else None
@@ -577,8 +589,11 @@ TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "omnidrones": tabl
 
 
 def _drone_weights(method: str, scenario: str) -> bool:
-    """Whether drone weights of a learned method ship with this package (``masp``: its manifest has them)."""
-    return method == "masp" and base_scenario(scenario) in read_manifest()
+    """Whether a learned drone method has weights here: shipped (``masp``) or kept (``masp-velocity``)."""
+    base = base_scenario(scenario)
+    if method == "masp":
+        return base in read_manifest()
+    return (KEPT_DIR / method / f"{base}-seed0.pt").exists()
 
 
 def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:
@@ -607,7 +622,8 @@ def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:
                  "omnidrones": ("drone-5", "drone-20"), "omnidrones-varying": ("drone-20to10",)}[table]
     columns = build(table, []).head[3:]  # the table's own columns, by label
     label_to = {label: (m, kept) for label, m, kept in
-                _columns(_MPE_COLUMNS + _OURS_ONLY) + [("MASP (budget)", "masp", "masp-budget/")]}
+                _columns(_MPE_COLUMNS + _OURS_ONLY) + [("MASP (budget)", "masp", "masp-budget/"),
+                                                       ("MASP (velocity)", "masp-velocity", "")]}
     runs = []
     for sc in scenarios:
         for m, kept in (label_to[c] for c in columns):

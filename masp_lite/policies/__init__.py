@@ -49,6 +49,7 @@ METHODS: dict[str, str] = {
     "h-rrtstar": "masp_lite.policies.planners:HRRTStar",
     "h-voronoi": "masp_lite.policies.planners:HVoronoi",
     "masp": "masp_lite.policies.masp:MASPPolicy",
+    "masp-velocity": "masp_lite.policies.drone_masp:DroneMASPVelocity",
     "masp-rg": "masp_lite.policies.masp:masp_rg",
     "gm-mlp": "masp_lite.policies.masp:gm_mlp",
     "cae-mlp": "masp_lite.policies.masp:cae_mlp",

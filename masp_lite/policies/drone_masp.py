@@ -1,7 +1,9 @@
 """MASP on drones: the trained Goal Matcher and Gaussian executor flying the quadrotor world.
 
 ``masp`` hands a drone world to :class:`DroneMASPPolicy` (weights with ``action="throttle"``,
-the paper's motor commands). Every global step the Goal Matcher gives the flying drones
+the paper's motor commands); ``masp-velocity`` is the variant whose executor asks the
+geometric controller for a velocity (weights with ``action="velocity"``), kept apart so a
+record never mixes them. Every global step the Goal Matcher gives the flying drones
 distinct goals (the most likely such assignment, :func:`~masp_lite.nets.decoding.joint_argmax`),
 or the Hungarian assignment with weights trained with ``goal_matcher="hungarian"``; every
 step the executor's action is its Gaussian's mean (``deterministic``, the default) or a
@@ -13,18 +15,20 @@ import torch
 
 from ..algos.assignment import hungarian_goals
 from ..nets.decoding import joint_argmax
-from ..weights import load_weights
+from ..nets.drones import motor_commands, velocity_controller
+from ..weights import KEPT_DIR, load_weights
 
-__all__ = ["DroneMASPPolicy", "DRONE_METHODS"]
+__all__ = ["DroneMASPPolicy", "DroneMASPVelocity", "DRONE_METHODS"]
 
 #: The learned drone methods -> their executor's ``NetConfig.action``.
-DRONE_METHODS = {"masp": "throttle"}
+DRONE_METHODS = {"masp": "throttle", "masp-velocity": "velocity"}
 
 
 class DroneMASPPolicy:
     """Trained MASP for drone worlds (method ``masp``; the networks' ``action`` is ``ACTION``).
 
-    ``checkpoint``: a weights file (default: the shipped ones).
+    ``checkpoint``: a weights file (default: the shipped ones for ``masp``, the kept seed-0
+    weights ``results/training/METHOD/drone-N-seed0.pt`` of a source checkout for ``masp-velocity``).
     ``seed`` seeds the group division and, with ``deterministic=False``, the samples;
     ``global_step`` overrides the weights' Goal Matcher period.
     """
@@ -35,20 +39,37 @@ class DroneMASPPolicy:
                  deterministic: bool = True, any_scenario: bool = False):
         if getattr(world.scenario, "kind", None) != "drone":
             raise ValueError(f"{type(self).__name__}: expected a drone world (drone-* scenario)")
+        if checkpoint is None:
+            checkpoint = self.kept(world.scenario)
         nets, meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
         if nets.config.action != self.ACTION:
             raise ValueError(f"{self.METHOD}: the checkpoint's executor outputs {nets.config.action!r} actions, "
-                             f"expected {self.ACTION!r}")
+                             f"expected {self.ACTION!r}"
+                             + ("; use --method masp-velocity" if nets.config.action == "velocity" else
+                                "; use --method masp" if nets.config.action == "throttle" else ""))
         gs = nets.arch["global_step"] if global_step is None else global_step
         if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
         self._setup(world, nets, meta, gs, seed, deterministic)
+
+    def kept(self, scenario):
+        """Default weights: the shipped ones for ``masp`` (None), the kept seed 0 for the others."""
+        if self.METHOD == "masp":
+            return None
+        name = {"drone-20to10": "drone-20"}.get(scenario.name, scenario.name)
+        path = KEPT_DIR / self.METHOD / f"{name}-seed0.pt"
+        if not path.exists():
+            raise ValueError(f"{self.METHOD}: no weights given and none kept for {scenario.name!r} (expected "
+                             f"results/training/{self.METHOD}/{name}-seed0.pt of a source checkout); pass "
+                             "checkpoint=PATH")
+        return path
 
     def _setup(self, world, nets, meta, global_step, seed, deterministic):
         self.world, self.nets, self.meta = world, nets.eval(), meta
         self.global_step, self.deterministic, self.seed = int(global_step), bool(deterministic), int(seed)
         self.scale = world.scenario.world_size / 2
         self.generator = torch.Generator().manual_seed(self.seed)
+        self.controller = velocity_controller() if nets.config.action == "velocity" else None
         self.goals = None
 
     @classmethod
@@ -79,4 +100,10 @@ class DroneMASPPolicy:
         mean, log_std = self.nets.cae_logits(self.nets.cae_inputs(obs, self.goals, perm))
         a = mean if self.deterministic else \
             mean + log_std.exp() * torch.randn(mean.shape, generator=self.generator, dtype=mean.dtype)
-        return a.clamp(-1.0, 1.0)
+        return motor_commands(a, obs, self.controller)
+
+
+class DroneMASPVelocity(DroneMASPPolicy):
+    """``masp-velocity``: MASP whose executor asks the geometric controller for a velocity set-point."""
+
+    METHOD, ACTION = "masp-velocity", "velocity"
