@@ -57,6 +57,8 @@ def main(argv=None) -> int:
     p.add_argument("--init", help="weights to start from (default: the shipped ones of --scenario)")
     p.add_argument("--num-envs", type=int, default=16)
     p.add_argument("--resume", action="store_true")
+    p.add_argument("--method", default="masp", choices=("masp", "masp-velocity"),
+                   help="masp-velocity needs --init (its weights are not shipped)")
     args = p.parse_args(argv)
     if not args.radius >= drone_model.COLLISION_RADIUS:
         raise SystemExit(f"--radius: expected at least the true {drone_model.COLLISION_RADIUS:.2f} m, "
@@ -64,7 +66,9 @@ def main(argv=None) -> int:
     torch.set_num_threads(1)
     inflate(args.radius)
     settings = SETTINGS + [f"updates={args.updates}", f"num_envs={args.num_envs}"]
-    method, cfg, overrides = method_config("masp", settings, args.scenario)
+    if args.method != "masp" and not args.init:
+        raise SystemExit(f"--method {args.method}: pass --init (weights of that method)")
+    method, cfg, overrides = method_config(args.method, settings, args.scenario)
     train(args.scenario, cfg, args.out, seed=0, resume=args.resume, init=args.init or default_checkpoint(args.scenario),
           overrides=overrides, progress=False, method=method,
           command=" ".join(["python -m experiments.drone_margin", *(sys.argv[1:] if argv is None else argv)]))
