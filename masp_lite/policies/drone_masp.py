@@ -16,7 +16,7 @@ import torch
 from ..algos.assignment import hungarian_goals
 from ..nets.decoding import joint_argmax
 from ..nets.drones import motor_commands, velocity_controller
-from ..weights import KEPT_DIR, load_weights
+from ..weights import KEPT_DIR, base_scenario, load_weights
 
 __all__ = ["DroneMASPPolicy", "DroneMASPVelocity", "DRONE_METHODS"]
 
@@ -56,7 +56,7 @@ class DroneMASPPolicy:
         """Default weights: the shipped ones for ``masp`` (None), the kept seed 0 for the others."""
         if self.METHOD == "masp":
             return None
-        name = {"drone-20to10": "drone-20"}.get(scenario.name, scenario.name)
+        name = base_scenario(scenario)
         path = KEPT_DIR / self.METHOD / f"{name}-seed0.pt"
         if not path.exists():
             raise ValueError(f"{self.METHOD}: no weights given and none kept for {scenario.name!r} (expected "
