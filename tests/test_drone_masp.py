@@ -4,7 +4,7 @@ import math
 import pytest
 import torch
 
-from masp_lite.algos.drone_trainer import DroneMASPTrainer, crash_charge
+from masp_lite.algos.drone_trainer import DroneMASPTrainer, crash_charge, motor_commands, velocity_controller
 from masp_lite.config import NetConfig
 from masp_lite.envs import make
 from masp_lite.envs.drone_model import CONTROL_DT, HOVER_COMMAND
@@ -14,8 +14,6 @@ from masp_lite.nets.drones import (
     drone_state_features,
     gaussian_entropy,
     gaussian_log_prob,
-    motor_commands,
-    velocity_controller,
 )
 from masp_lite.policies import make_policy
 from masp_lite.training import method_config, train

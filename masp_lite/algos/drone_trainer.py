@@ -26,13 +26,14 @@ from __future__ import annotations
 import torch
 
 from ..nets.decoding import sequential_sample
-from ..nets.drones import gaussian_log_prob, motor_commands, velocity_controller
+from ..nets.drones import DRONE_SPEED, gaussian_log_prob
+from ..planners.geometric import LeeController
 from .assignment import hungarian_goals
 from .mappo import RolloutStorage
 from .masp_trainer import MASPTrainer
 from .rewards import executor_reward, goal_matcher_reward
 
-__all__ = ["DroneMASPTrainer", "DRONE_OBS_KEYS", "crash_charge"]
+__all__ = ["DroneMASPTrainer", "DRONE_OBS_KEYS", "crash_charge", "motor_commands", "velocity_controller"]
 
 DRONE_OBS_KEYS = ("agent_pos", "agent_vel", "landmark_pos", "alive", "covered", "reached", "t")
 
@@ -41,6 +42,26 @@ def crash_charge(dist: torch.Tensor, crashed: torch.Tensor, steps_left: int, wor
                  beta: float = 1.0) -> torch.Tensor:
     """(B, N): ``β · steps_left · dist / (world_size / 2)`` for the drones that ``crashed`` this step, else 0."""
     return torch.where(crashed, beta * steps_left * dist / (world_size / 2), torch.zeros_like(dist))
+
+
+def velocity_controller() -> LeeController:
+    """The geometric controller that flies ``velocity`` actions (velocity gain 4, speed capped at ``DRONE_SPEED``)."""
+    return LeeController(kv=4.0, max_speed=DRONE_SPEED)
+
+
+def motor_commands(actions: torch.Tensor, obs: dict, controller: LeeController | None = None) -> torch.Tensor:
+    """The world's motor commands (B, N, 4) for executor actions ``actions``, clipped to [−1, 1] first.
+
+    Without ``controller`` (``action="throttle"``) the clipped actions are the commands; with one
+    (``action="velocity"``, :func:`velocity_controller`) the clipped action × ``DRONE_SPEED`` is the
+    velocity set-point the controller flies from the drone's own position.
+    """
+    a = actions.clamp(-1.0, 1.0)
+    if controller is None:
+        return a
+    pos = obs["agent_pos"]
+    return controller(pos, obs["agent_vel"], obs["agent_quat"], obs["agent_angvel"], target_pos=pos,
+                      target_vel=a * DRONE_SPEED)
 
 
 class DroneMASPTrainer(MASPTrainer):

@@ -17,7 +17,8 @@ The design is the particle world's (:mod:`masp_lite.nets.masp`), node for node:
   - ``throttle`` (the paper's): 4 motor commands; the mean is ``HOVER_COMMAND`` plus the
     head's output, whose last layer starts near 0, so an untrained executor hovers;
   - ``velocity`` (the variant ``masp-velocity``): a 3-D velocity set-point in units of
-    ``DRONE_SPEED``, flown by the geometric controller (:class:`~masp_lite.planners.geometric.LeeController`).
+    ``DRONE_SPEED``, flown by the geometric controller
+    (:func:`masp_lite.algos.drone_trainer.motor_commands`).
 
   A sample is clipped to [−1, 1] before it reaches the world or the controller; the policy
   is trained on the log-probability of the unclipped sample (the clip belongs to the world),
@@ -40,7 +41,6 @@ from torch import nn
 from ..config import NetConfig
 from ..envs.drone_model import HOVER_COMMAND, quat_to_matrix
 from ..envs.drones import FLIGHT_HEIGHT
-from ..planners.geometric import LeeController
 from .encoders import mlp
 from .fusion import GroupInformationFusion, group_division
 from .masp import (
@@ -53,8 +53,7 @@ from .masp import (
     pair_features,
 )
 
-__all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "motor_commands", "velocity_controller",
-           "gaussian_log_prob", "gaussian_entropy",
+__all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "gaussian_log_prob", "gaussian_entropy",
            "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
 
 DRONE_SPEED = 4.0
@@ -78,26 +77,6 @@ def drone_state_features(obs: dict) -> torch.Tensor:
     R = quat_to_matrix(q / q.norm(dim=-1, keepdim=True).clamp(min=1e-9))
     z = (obs["agent_pos"][..., 2:] - FLIGHT_HEIGHT) / FLIGHT_HEIGHT
     return torch.cat([R.flatten(-2), obs["agent_angvel"] / ANGVEL_SCALE, z, obs["throttle"]], dim=-1).to(q.dtype)
-
-
-def velocity_controller() -> LeeController:
-    """The geometric controller that flies ``velocity`` actions (velocity gain 4, speed capped at ``DRONE_SPEED``)."""
-    return LeeController(kv=4.0, max_speed=DRONE_SPEED)
-
-
-def motor_commands(actions: torch.Tensor, obs: dict, controller: LeeController | None = None) -> torch.Tensor:
-    """The world's motor commands (B, N, 4) for executor actions ``actions``, clipped to [−1, 1] first.
-
-    Without ``controller`` (``action="throttle"``) the clipped actions are the commands; with one
-    (``action="velocity"``, :func:`velocity_controller`) the clipped action × ``DRONE_SPEED`` is the
-    velocity set-point the controller flies from the drone's own position.
-    """
-    a = actions.clamp(-1.0, 1.0)
-    if controller is None:
-        return a
-    pos = obs["agent_pos"]
-    return controller(pos, obs["agent_vel"], obs["agent_quat"], obs["agent_angvel"], target_pos=pos,
-                      target_vel=a * DRONE_SPEED)
 
 
 def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:

@@ -14,8 +14,8 @@ from __future__ import annotations
 import torch
 
 from ..algos.assignment import hungarian_goals
+from ..algos.drone_trainer import motor_commands, velocity_controller
 from ..nets.decoding import joint_argmax
-from ..nets.drones import motor_commands, velocity_controller
 from ..weights import KEPT_DIR, base_scenario, load_weights
 
 __all__ = ["DroneMASPPolicy", "DroneMASPVelocity", "DRONE_METHODS"]
