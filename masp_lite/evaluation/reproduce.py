@@ -26,6 +26,7 @@ from pathlib import Path
 
 from ..envs import MPE2_WORLD, get_scenario, world_name
 from ..policies import METHODS, get_factory, method_options
+from ..policies.drone_masp import kept_checkpoint
 from ..weights import KEPT_DIR, base_scenario, read_manifest, trained_preset
 from .evaluate import evaluate
 from .paper import PAPER
@@ -590,10 +591,9 @@ TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "omnidrones": tabl
 
 def _drone_weights(method: str, scenario: str) -> bool:
     """Whether a learned drone method has weights here: shipped (``masp``) or kept (``masp-velocity``)."""
-    base = base_scenario(scenario)
     if method == "masp":
-        return base in read_manifest()
-    return (KEPT_DIR / method / f"{base}-seed0.pt").exists()
+        return base_scenario(scenario) in read_manifest()
+    return kept_checkpoint(method, scenario).exists()
 
 
 def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:

@@ -11,6 +11,8 @@ sample, clipped to [−1, 1] (:mod:`masp_lite.nets.drones`).
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import torch
 
 from ..algos.assignment import hungarian_goals
@@ -18,10 +20,15 @@ from ..algos.drone_trainer import motor_commands, velocity_controller
 from ..nets.decoding import joint_argmax
 from ..weights import KEPT_DIR, base_scenario, load_weights
 
-__all__ = ["DroneMASPPolicy", "DroneMASPVelocity", "DRONE_METHODS"]
+__all__ = ["DroneMASPPolicy", "DroneMASPVelocity", "DRONE_METHODS", "kept_checkpoint"]
 
 #: The learned drone methods -> their executor's ``NetConfig.action``.
 DRONE_METHODS = {"masp": "throttle", "masp-velocity": "velocity"}
+
+
+def kept_checkpoint(method: str, scenario) -> Path:
+    """Where a source checkout keeps the seed-0 drone weights of a learned variant that is not shipped."""
+    return KEPT_DIR / method / f"{base_scenario(scenario)}-seed0.pt"
 
 
 class DroneMASPPolicy:
@@ -56,12 +63,10 @@ class DroneMASPPolicy:
         """Default weights: the shipped ones for ``masp`` (None), the kept seed 0 for the others."""
         if self.METHOD == "masp":
             return None
-        name = base_scenario(scenario)
-        path = KEPT_DIR / self.METHOD / f"{name}-seed0.pt"
+        path = kept_checkpoint(self.METHOD, scenario)
         if not path.exists():
             raise ValueError(f"{self.METHOD}: no weights given and none kept for {scenario.name!r} (expected "
-                             f"results/training/{self.METHOD}/{name}-seed0.pt of a source checkout); pass "
-                             "checkpoint=PATH")
+                             f"{path.relative_to(KEPT_DIR.parents[1])} of a source checkout); pass checkpoint=PATH")
         return path
 
     def _setup(self, world, nets, meta, global_step, seed, deterministic):
