@@ -119,6 +119,7 @@ def test_evaluate_record_and_table():
     assert set(rec) >= {"method", "scenario", "seeds", "episodes_per_seed", "sr", "steps", "cr",
                         "decision_ms"}
     assert rec["seeds"] == [0, 1] and rec["episodes_per_seed"] == 3
+    assert rec["threads"] == torch.get_num_threads()  # a float sum's rounding depends on it (test_records)
     json.dumps(rec)  # serialisable
     assert rec["steps"] == {"mean": None, "std": None}  # random never covers all in 4 steps
     text = format_table([rec])

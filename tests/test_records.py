@@ -3,8 +3,9 @@
 A record (``results/**/*.json`` with ``method``, ``scenario``, ``seeds``...) is the output
 of ``evaluate --json``; running :func:`masp_lite.evaluation.evaluate` again with its
 method, scenario, world definition, seeds, episodes, batch size, overrides and options must give the same numbers,
-exactly (decision time is wall-clock and is not compared). A record made with a weights
-file names it and its SHA-256; the file must still be there, unchanged.
+exactly (decision time is wall-clock and is not compared), at the torch thread count the record
+names (a record without one, made before records named it, re-evaluates at the test's own count).
+A record made with a weights file names it and its SHA-256; the file must still be there, unchanged.
 
 Re-evaluating the slow planners on mpe-50, or 100 and 200 agents, takes minutes each, so by
 default only the records whose estimated cost (decision and world time x steps) is under ``BUDGET_S`` run here;
@@ -15,6 +16,7 @@ import os
 from pathlib import Path
 
 import pytest
+import torch
 
 from masp_lite.envs import MPE2_WORLD, get_scenario
 from masp_lite.evaluation import evaluate
@@ -63,8 +65,13 @@ def test_record_re_evaluates_identically(path, rec, monkeypatch):
         assert sha256(ROOT / options["checkpoint"]) == rec["checkpoint_sha256"], "the weights file changed"
         monkeypatch.chdir(ROOT)  # checkpoint paths are relative to the repository root
     overrides = {**rec["world"], **rec.get("overrides", {})}  # the world it was made in, whatever the preset's
-    again = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
-                     overrides=overrides, method_options=options, num_envs=rec.get("num_envs"))  # batches: as made
+    threads = torch.get_num_threads()
+    torch.set_num_threads(rec.get("threads", threads))  # a float sum's rounding depends on it
+    try:
+        again = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
+                         overrides=overrides, method_options=options, num_envs=rec.get("num_envs"))  # as made
+    finally:
+        torch.set_num_threads(threads)
     for key in ("sr", "steps", "cr"):
         assert again[key] == rec[key], f"{key}: {again[key]} now, {rec[key]} in {path.name}"
 

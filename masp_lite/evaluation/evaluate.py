@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import torch
 
 from ..envs import OVERRIDES, make
 from ..policies import build_policy, get_factory
@@ -52,6 +53,9 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     milliseconds per step of one world — amortised over the batch; ``num_envs=1`` measures
     the latency of deciding for a single team, the paper's per-step time. ``steps`` is
     ``{"mean": None, "std": None}`` when no episode reaches SR 1 (the paper's backslash).
+    ``threads`` is torch's intra-op thread count during the run: a float sum may round
+    differently with another count, and the drone world's flight amplifies such a difference
+    into another trajectory, so a record re-evaluates exactly at the thread count it names.
     """
     overrides = dict(overrides or {})
     options = dict(method_options or {})
@@ -101,7 +105,7 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     any_solved = bool(reached_target(log).any())
     return {
         "method": method, "scenario": sc_name, "world": sc.world, "seeds": seeds, "episodes_per_seed": episodes,
-        "num_envs": B,
+        "num_envs": B, "threads": torch.get_num_threads(),
         "sr": _stats(success_rate(log).numpy()),
         "steps": _stats(steps_) if any_solved else {"mean": None, "std": None},
         "cr": _stats(collision_rate(log).numpy()),
