@@ -17,28 +17,14 @@ metric, not a method: the product keeps its one reading.
 from __future__ import annotations
 
 import argparse
-import inspect
 
-import numpy as np
-
-from masp_lite.envs import make
-from masp_lite.evaluation.evaluate import MAX_ENVS
-from masp_lite.evaluation.metrics import reached_target, steps
-from masp_lite.evaluation.rollouts import rollout
-from masp_lite.policies import get_factory, make_policy
+from masp_lite.evaluation import evaluate, reached_target, steps
 
 
-def episode_steps(method: str, scenario: str, seeds: list[int], episodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """(Steps per episode, solved per episode) over ``seeds``, the episodes ``evaluate`` runs."""
-    all_steps, all_solved = [], []
-    takes_seed = "seed" in inspect.signature(get_factory(method)).parameters
-    for s in seeds:
-        world = make(scenario, num_envs=min(episodes, MAX_ENVS), seed=s)
-        policy = make_policy(method, world, **({"seed": s} if takes_seed else {}))
-        log, _ = rollout(world, policy, episodes, seed=s)
-        all_steps.append(steps(log).numpy())
-        all_solved.append(reached_target(log).numpy())
-    return np.concatenate(all_steps).astype(float), np.concatenate(all_solved)
+def episode_steps(method: str, scenario: str, seeds: list[int], episodes: int):
+    """(Steps per episode, solved per episode) on the episodes ``evaluate`` runs (its own log)."""
+    _, log = evaluate(method, scenario, episodes=episodes, seeds=seeds, return_log=True)
+    return steps(log).double(), reached_target(log)
 
 
 def main(argv=None):
@@ -54,7 +40,7 @@ def main(argv=None):
     first = None
     for m in args.methods:
         st, ok = episode_steps(m, args.scenario, args.seeds, args.episodes)
-        every, solved = float(st.mean()), float(st[ok].mean()) if ok.any() else float("nan")
+        every, solved = float(st.mean()), float(st[ok].mean()) if bool(ok.any()) else float("nan")
         first = first or (every, solved)
         print(f"{m:16s} {int(ok.sum()):4d}/{len(ok):<4d} {every:12.2f} {solved:15.2f} {every / first[0]:10.3f} "
               f"{solved / first[1]:13.3f}", flush=True)

@@ -34,7 +34,7 @@ def _stats(x: np.ndarray) -> dict:
 
 def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), overrides=None,
              method_options=None, checkpoint=None, device: str = "cpu", num_envs: int | None = None,
-             progress: bool = False) -> dict:
+             progress: bool = False, return_log: bool = False):
     """Evaluate ``method`` on ``scenario``: ``episodes`` per seed, for every seed.
 
     Evaluation seed ``s`` seeds the world (spawns, team changes) via :func:`rollout`. If
@@ -56,6 +56,8 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     ``threads`` is torch's intra-op thread count during the run: a float sum may round
     differently with another count, and the drone world's flight amplifies such a difference
     into another trajectory, so a record re-evaluates exactly at the thread count it names.
+    ``return_log=True`` returns ``(record, log)``: the :class:`EpisodeLog` of every episode too,
+    for a per-episode look (e.g. Steps over the solved episodes only, chapter 11).
     """
     overrides = dict(overrides or {})
     options = dict(method_options or {})
@@ -103,7 +105,7 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     sc_name = scenario if isinstance(scenario, str) else scenario.name
     steps_ = steps(log).numpy()
     any_solved = bool(reached_target(log).any())
-    return {
+    record = {
         "method": method, "scenario": sc_name, "world": sc.world, "seeds": seeds, "episodes_per_seed": episodes,
         "num_envs": B, "threads": torch.get_num_threads(),
         "sr": _stats(success_rate(log).numpy()),
@@ -114,3 +116,4 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
         **({"method_options": options} if options else {}),
         **({"checkpoint_sha256": sha256(options["checkpoint"])} if options.get("checkpoint") else {}),
     }
+    return (record, log) if return_log else record
