@@ -164,6 +164,51 @@ def test_reset_mask_resets_only_finished_worlds():
     assert (out["episode", "collision_rate"][fresh] == 0).all()
 
 
+def _stepper(env, seed):
+    actions = iter(_actions(seed, 50, env.world.num_envs, env.num_agents))
+
+    def step(td):
+        td["agents", "action"] = next(actions)
+        return env.step(td)["next"]
+    return step
+
+
+@pytest.mark.parametrize("hold", ["tensor", "view", "numpy", "tensordict", "storage", "shared"])
+def test_a_held_observation_keeps_its_numbers(hold):
+    """The face writes a new observation into an old one's memory only when nothing can reach
+    it: however an observation is held, later steps leave it (and its memory) alone."""
+    env = ParticleTorchRLEnv("mpe-5", num_envs=3, seed=0)
+    step = _stepper(env, 4)
+    td = step(env.reset())
+    obs = td["agents", "observation"]
+    if hold == "shared":  # another process could hold it: nothing here can tell
+        obs.share_memory_()
+    copy, ptr = obs.clone(), obs.data_ptr()
+    holder = (obs if hold == "tensor" else obs[1:] if hold == "view" else obs.numpy() if hold == "numpy"
+              else td if hold == "tensordict" else obs.untyped_storage() if hold == "storage" else None)
+    del obs, td
+    td = step(env.reset())
+    for _ in range(12):
+        td = step(td)
+        assert td["agents", "observation"].data_ptr() != ptr
+    if hold in ("tensor", "tensordict"):
+        assert torch.equal(holder if hold == "tensor" else holder["agents", "observation"], copy)
+    elif hold in ("view", "numpy"):
+        assert np.array_equal(np.asarray(holder), copy[1:].numpy() if hold == "view" else copy.numpy())
+
+
+def test_dropped_observations_lend_their_memory():
+    """What nobody holds is used again: a few buffers go round instead of fresh memory each step
+    (5.2 MB per step at mpe-50 x 64 worlds, a page fault per 4 KiB)."""
+    env = ParticleTorchRLEnv("mpe-5", num_envs=3, seed=0)
+    step = _stepper(env, 5)
+    td, seen = env.reset(), set()
+    for _ in range(15):  # within mpe-5's horizon of 18
+        td = step(td)
+        seen.add(td["agents", "observation"].data_ptr())
+    assert len(seen) <= 4
+
+
 def test_device_is_honoured():
     env = ParticleTorchRLEnv("mpe-5", num_envs=2, device="cpu", seed=0)
     td = env.rollout(2)

@@ -52,12 +52,18 @@ updated every step and final when ``"done"`` is True; log them there (:func:`fin
 * ``collision_rate``: collision events (contact pairs after each step) summed so far, over
   the steps taken so far — at the horizon, ``metrics.collision_rate``.
 
+**Memory**: each step's observation is a new tensor, but it may reuse the memory of an
+earlier one that nothing can reach any more (:class:`_Recycler`): an observation that is
+held in any way (a TensorDict, a view, a numpy array, its storage) keeps its numbers.
+
 Resets: ``reset()`` starts every world; a ``"_reset"`` mask (B, 1) starts only those worlds
 (:meth:`ParticleWorld.reset` with ``env_ids``), the others keep their state. ``set_seed(s)``
 seeds the world's generator, so ``set_seed(s); reset()`` starts the same episodes as
 ``ParticleWorld(scenario, num_envs, seed=s)``; ``seed=`` in the constructor does the same.
 """
 from __future__ import annotations
+
+import sys
 
 import torch
 
@@ -104,15 +110,15 @@ class ParticleTorchRLEnv(EnvBase):
         B, N, K = world.num_envs, world.num_agents, world.num_obstacles
         self.num_agents, self.obs_dim = N, 7 * N - 1 + 2 * K
         dev = self.device
-        # the agents j != i of every agent i in index order, flattened (the "other agents" blocks' order)
+        # slot k of agent i's "other agents" blocks holds agent k (k < i) or agent k + 1 (k >= i)
         idx = torch.arange(N, device=dev)
-        self._others = idx.expand(N, N)[idx[:, None] != idx[None, :]]
-        ends = torch.tensor([2, 2, 2 * N, 2 * (N - 1), 2 * (N - 1), N - 1, 2 * K]).cumsum(0).tolist()
-        self._blocks = list(zip([0, *ends[:-1]], ends))  # the observation's blocks, in order
+        self._before = idx[:, None] > idx[None, :N - 1]                                  # (N, N - 1)
+        self._others = idx[None, :N - 1] + (~self._before).long()                        # (N, N - 1) agent ids
         # per-world metric counters: collision events so far, first step with SR 1 (-1: not yet)
         self._collided = torch.zeros(B, dtype=torch.long, device=dev)
         self._first = torch.full((B,), -1, dtype=torch.long, device=dev)
         self._acting = world.alive
+        self._recycler = _Recycler()
         self._agents_shape, self._episode_shape = torch.Size([B, N]), torch.Size([B])
         flag = dict(n=2, dtype=torch.bool, device=dev)
         self.observation_spec = Composite(
@@ -157,7 +163,7 @@ class ParticleTorchRLEnv(EnvBase):
         self._collided = torch.where(fresh, 0, self._collided)
         self._first = torch.where(fresh, torch.where(solved, 0, -1), self._first)
         self._acting = w.alive
-        return self._output(self._observation()[0], solved)
+        return self._output(self._observation(), solved)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         w = self.world
@@ -172,10 +178,9 @@ class ParticleTorchRLEnv(EnvBase):
         self._collided = self._collided + info["collisions"]
         solved = self._solved()
         self._first = torch.where((self._first < 0) & solved, w.t, self._first)
-        obs, dist2 = self._observation()
-        reward = self._reward(dist2, info["agent_collisions"]) * self._acting  # 0 for agents already gone
+        reward = self._reward(info["agent_collisions"]) * self._acting  # 0 for agents already gone
         self._acting = w.alive
-        return self._output(obs, solved, reward.to(torch.float32).unsqueeze(-1))
+        return self._output(self._observation(), solved, reward.to(torch.float32).unsqueeze(-1))
 
     # ------------------------------------------------------------- helpers
     def _solved(self) -> torch.Tensor:
@@ -183,48 +188,49 @@ class ParticleTorchRLEnv(EnvBase):
         w = self.world
         return (w.reached if self.scenario.varying else w.covered).all(dim=-1)
 
-    def _observation(self) -> tuple[torch.Tensor, torch.Tensor]:
-        """The PettingZoo face's per-agent observation for every world, (B, N, 7N - 1 + 2K) float32,
-        and the squared agent-landmark distances (B, N agents, N landmarks) the reward needs.
+    def _observation(self) -> torch.Tensor:
+        """The PettingZoo face's per-agent observation for every world, (B, N, 7N - 1 + 2K) float32.
 
-        This runs every step on about as many numbers as the physics touches, so each block is
-        written into its slice of one fresh tensor, one coordinate at a time: broadcasting over
-        a length-N axis is several times faster than over the (x, y) pairs."""
+        This runs every step on about as many numbers as the physics touches, so it is written
+        for speed. Each (x, y) pair is one complex number, so every "other minus own" block is
+        one broadcast subtraction over a length-N axis (complex subtraction is the componentwise
+        float subtraction, so the numbers are the same to the bit). The "other agents" blocks
+        skip agent i without a gather: slot k takes agent k before i and agent k + 1 from i on
+        (one ``torch.where`` over a precomputed (N, N - 1) mask), then subtracts agent i."""
         w, N = self.world, self.num_agents
-        pos, vel, alive = w.agent_pos, w.agent_vel, w.alive
-        B, K = pos.shape[0], w.num_obstacles
-        out = torch.empty(B, N, self.obs_dim, dtype=pos.dtype, device=pos.device)
-        own_vel, own_pos, lms, rel_pos, rel_vel, flags, obst = (out[..., a:b] for a, b in self._blocks)
-        own_vel.copy_(vel)
-        own_pos.copy_(pos)
+        pos, vel, alive = _complex(w.agent_pos), _complex(w.agent_vel), w.alive
+        B = pos.shape[0]
+        out = self._recycler.empty((B, N, self.obs_dim), torch.float32, pos.device)
 
-        def others(x):  # (B, N) -> (B, N, N - 1): x_j of the agents j != i, for every agent i
-            return x.index_select(1, self._others).view(B, N, N - 1)
+        def put(start, block):  # (B, N, M) complex -> the M (x, y) pairs from column `start` on
+            out[..., start:start + 2 * block.shape[-1]].view(*block.shape, 2).copy_(torch.view_as_real(block))
 
-        left = None if bool(alive.all()) else ~others(alive)
-        dist2 = None
-        for c in range(2):  # x, then y: block[b, i, j, c] = other_j[c] - own_i[c]
-            own = pos[..., c].unsqueeze(2)
-            to_lm = w.landmark_pos[..., c].unsqueeze(1) - own                    # contiguous (B, N, N)
-            lms.view(B, N, N, 2)[..., c].copy_(to_lm)
-            dist2 = to_lm * to_lm if dist2 is None else dist2.addcmul_(to_lm, to_lm)
-            torch.sub(w.obstacle_pos[..., c].unsqueeze(1), own, out=obst.view(B, N, K, 2)[..., c])
-            for block, x in ((rel_pos, pos), (rel_vel, vel)):
-                xc = x[..., c]
-                dst = torch.sub(others(xc), xc.unsqueeze(2), out=block.view(B, N, N - 1, 2)[..., c])
-                if left is not None:  # a dropped agent's slots are zero
-                    dst.masked_fill_(left, 0.0)
+        put(0, torch.stack((vel, pos), dim=-1))
+        own = pos.unsqueeze(2)
+        put(4, _complex(w.landmark_pos).unsqueeze(1) - own)
+        left = None if bool(alive.all()) else ~alive[:, self._others]                    # (B, N, N - 1)
+        for start, x in ((2 * N + 4, pos), (4 * N + 2, vel)):
+            row = x.unsqueeze(1)                                             # slot k: x_k (k < i) or x_(k+1)
+            block = torch.where(self._before, row[..., :-1], row[..., 1:]).sub_(x.unsqueeze(2))
+            if left is not None:  # a dropped agent's slots are zero
+                block.masked_fill_(left, 0)
+            put(start, block)
+        flags = out[..., 6 * N:7 * N - 1]
         flags.fill_(1.0) if left is None else flags.copy_(~left)
-        return out.to(torch.float32), dist2
+        put(7 * N - 1, _complex(w.obstacle_pos).unsqueeze(1) - own)
+        return out
 
-    def _reward(self, dist2: torch.Tensor, contacts: torch.Tensor) -> torch.Tensor:
-        """(B, N): simple_spread's reward of every agent (module docstring), from the squared
-        agent-landmark distances of :meth:`_observation` (the world's precision)."""
-        alive = self.world.alive
-        if not bool(alive.all()):  # dropped agents cover nothing
-            dist2 = torch.where(alive.unsqueeze(-1), dist2, torch.inf)
-        nearest = dist2.amin(dim=1).sqrt()
-        team = -nearest.sum(dim=-1, keepdim=True)
+    def _reward(self, contacts: torch.Tensor) -> torch.Tensor:
+        """(B, N): simple_spread's reward of every agent (module docstring), the distances in the
+        world's precision: x and y apart, so every pass runs over contiguous (B, N, N) tensors."""
+        w = self.world
+        pos, lms = w.agent_pos.transpose(1, 2).contiguous(), w.landmark_pos.transpose(1, 2).contiguous()  # (B, 2, N)
+        dx = lms[:, 0].unsqueeze(1) - pos[:, 0].unsqueeze(2)                           # (B, N agents, N landmarks)
+        dy = lms[:, 1].unsqueeze(1) - pos[:, 1].unsqueeze(2)
+        dist2 = dx.square_().addcmul_(dy, dy)
+        if not bool(w.alive.all()):  # dropped agents cover nothing
+            dist2.masked_fill_(~w.alive.unsqueeze(-1), torch.inf)
+        team = -dist2.amin(dim=1).sqrt_().sum(dim=-1, keepdim=True)
         return (1 - LOCAL_RATIO) * team - LOCAL_RATIO * contacts
 
     def _output(self, obs: torch.Tensor, solved: torch.Tensor, reward: torch.Tensor | None = None) -> TensorDictBase:
@@ -242,3 +248,43 @@ class ParticleTorchRLEnv(EnvBase):
                            "episode": TensorDict(episode, batch_size=self._episode_shape, device=self.device),
                            "done": over, "terminated": torch.zeros_like(over), "truncated": over.clone()},
                           batch_size=self.batch_size, device=self.device)
+
+
+def _complex(xy: torch.Tensor) -> torch.Tensor:
+    """(..., 2) real -> (...) complex view of the same numbers (a copy only when no view is possible)."""
+    if not xy.is_contiguous() or xy.storage_offset() % 2:
+        xy = xy.clone(memory_format=torch.contiguous_format)
+    return torch.view_as_complex(xy)
+
+
+class _Recycler:
+    """Fresh tensors that reuse the memory of earlier ones nobody can see any more.
+
+    The face's observation is the largest tensor it makes each step (5.2 MB at mpe-50 x 64
+    worlds). Fresh memory of that size costs glibc's allocator a page fault per 4 KiB the
+    first time it is written (~1,300 per step, about a sixth of a native world step), and
+    how many a process pays drifts with its heap's history. So the face keeps the last
+    ``keep`` tensors it handed out and writes a new observation into one of them only when
+    nothing else can reach its memory: no Python reference to the tensor (a TensorDict, a
+    list, a numpy array, a view's ``_base``), no other C++ reference to it, no other tensor
+    on its storage, no reference to the storage, and not in shared memory (another process
+    may hold it). Anything still held keeps its numbers."""
+
+    def __init__(self, keep: int = 4):
+        self.keep, self._kept = keep, []
+
+    def empty(self, shape: tuple, dtype: torch.dtype, device: torch.device) -> torch.Tensor:
+        for t in self._kept:
+            if tuple(t.shape) == shape and t.dtype == dtype and t.device == device and self._unreachable(t):
+                return t
+        t = torch.empty(shape, dtype=dtype, device=device)
+        self._kept = [t, *self._kept[:self.keep - 1]]
+        return t
+
+    @staticmethod
+    def _unreachable(t: torch.Tensor) -> bool:
+        # references: the list, the loop variable, this argument, getrefcount's own argument
+        if sys.getrefcount(t) != 4 or t._use_count() != 1 or t.is_shared():
+            return False
+        storage = t.untyped_storage()  # its one Python object: here, getrefcount's argument, the storage itself
+        return sys.getrefcount(storage) == 3 and torch._C._storage_Use_Count(storage._cdata) == 2
