@@ -1,5 +1,7 @@
 """The TorchRL face: TorchRL's own spec check, rollouts and a collector, and agreement with the
 native world, the PettingZoo face and the library's metrics, exactly where the numbers allow."""
+import weakref
+
 import numpy as np
 import pytest
 import torch
@@ -173,7 +175,7 @@ def _stepper(env, seed):
     return step
 
 
-@pytest.mark.parametrize("hold", ["tensor", "view", "numpy", "tensordict", "storage", "shared"])
+@pytest.mark.parametrize("hold", ["tensor", "view", "numpy", "tensordict", "storage", "weakref", "shared"])
 def test_a_held_observation_keeps_its_numbers(hold):
     """The face writes a new observation into an old one's memory only when nothing can reach
     it: however an observation is held, later steps leave it (and its memory) alone."""
@@ -185,7 +187,8 @@ def test_a_held_observation_keeps_its_numbers(hold):
         obs.share_memory_()
     copy, ptr = obs.clone(), obs.data_ptr()
     holder = (obs if hold == "tensor" else obs[1:] if hold == "view" else obs.numpy() if hold == "numpy"
-              else td if hold == "tensordict" else obs.untyped_storage() if hold == "storage" else None)
+              else td if hold == "tensordict" else obs.untyped_storage() if hold == "storage"
+              else weakref.ref(obs) if hold == "weakref" else None)
     del obs, td
     td = step(env.reset())
     for _ in range(12):
@@ -193,6 +196,8 @@ def test_a_held_observation_keeps_its_numbers(hold):
         assert td["agents", "observation"].data_ptr() != ptr
     if hold in ("tensor", "tensordict"):
         assert torch.equal(holder if hold == "tensor" else holder["agents", "observation"], copy)
+    elif hold == "weakref":  # what it still reaches is the observation it was made for
+        assert holder() is None or torch.equal(holder(), copy)
     elif hold in ("view", "numpy"):
         assert np.array_equal(np.asarray(holder), copy[1:].numpy() if hold == "view" else copy.numpy())
 
