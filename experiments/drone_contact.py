@@ -27,14 +27,13 @@ the features are not stored in them.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
-from pathlib import Path
 
 import torch
 
 import masp_lite.nets.drones as drone_nets
+from experiments import print_validation
 from masp_lite.evaluation import evaluate
 from masp_lite.training import method_config, train
 
@@ -82,12 +81,7 @@ def main(argv=None) -> int:
         train("drone-5", cfg, args.out, seed=0, resume=args.resume, overrides=overrides, progress=False,
               method=method, command=" ".join(["python -m experiments.drone_contact", *(sys.argv[1:] if argv is None
                                                                                         else argv)]))
-        with open(Path(args.out) / "progress.csv") as f:
-            for row in csv.DictReader(f):
-                if row["eval_sr"]:
-                    sr, st, cr = (float(row[f"eval_{k}"]) for k in ("sr", "steps", "cr"))
-                    print(f"iteration {row['iteration']:>3}  wall {float(row['wall_s']):6.0f} s  validation SR "
-                          f"{sr:.3f}  Steps {st:6.1f}  CR {cr:.4f}")
+        print_validation(args.out)
     else:
         record = evaluate("masp-velocity", args.scenario, episodes=args.episodes, seeds=[12345],
                           checkpoint=args.checkpoint)

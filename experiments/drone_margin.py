@@ -22,14 +22,13 @@ spheres); evaluate the weights in the true world with::
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
-from pathlib import Path
 
 import torch
 
 import masp_lite.envs.drone_model as drone_model
 import masp_lite.envs.drones as drones
+from experiments import print_validation
 from masp_lite.training import method_config, train
 from masp_lite.weights import default_checkpoint
 
@@ -72,12 +71,7 @@ def main(argv=None) -> int:
     train(args.scenario, cfg, args.out, seed=0, resume=args.resume, init=args.init or default_checkpoint(args.scenario),
           overrides=overrides, progress=False, method=method,
           command=" ".join(["python -m experiments.drone_margin", *(sys.argv[1:] if argv is None else argv)]))
-    with open(Path(args.out) / "progress.csv") as f:
-        for row in csv.DictReader(f):
-            if row["eval_sr"]:
-                sr, st, cr = (float(row[f"eval_{k}"]) for k in ("sr", "steps", "cr"))
-                print(f"iteration {row['iteration']:>3}  wall {float(row['wall_s']):6.0f} s  SR (inflated spheres) "
-                      f"{sr:.3f}  Steps {st:6.1f}  CR {cr:.4f}")
+    print_validation(args.out, "SR (inflated spheres)")
     return 0
 
 

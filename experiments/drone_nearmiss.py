@@ -21,12 +21,11 @@ policy, 16 episodes, evaluation seed 12345); the weights keep the product's layo
 from __future__ import annotations
 
 import argparse
-import csv
-from pathlib import Path
 
 import torch
 
 import masp_lite.algos.drone_trainer as drone_trainer
+from experiments import print_validation
 from masp_lite.envs.drone_model import COLLISION_RADIUS
 from masp_lite.envs.drones import DroneWorld
 from masp_lite.training import method_config, train
@@ -83,12 +82,7 @@ def main(argv=None) -> int:
     train("drone-20", cfg, args.out, seed=0, resume=args.resume, init=SHIPPED, overrides=overrides,
           progress=False, method=method,
           command=f"python -m experiments.drone_nearmiss --coef {args.coef} --zone {args.zone}")
-    with open(Path(args.out) / "progress.csv") as f:
-        for row in csv.DictReader(f):
-            if row["eval_sr"]:
-                sr, st, cr = (float(row[f"eval_{k}"]) for k in ("sr", "steps", "cr"))
-                print(f"iteration {row['iteration']:>3}  wall {float(row['wall_s']):6.0f} s  validation SR {sr:.3f}  "
-                      f"Steps {st:6.1f}  CR {cr:.4f}")
+    print_validation(args.out)
     return 0
 
 

@@ -15,12 +15,11 @@ not stored in them, so they are for this question only.
 from __future__ import annotations
 
 import argparse
-import csv
-from pathlib import Path
 
 import torch
 
 import masp_lite.nets.drones as drone_nets
+from experiments import print_validation
 from masp_lite.training import method_config, train
 
 SHIPPED = "masp_lite/weights/drone-20.pt"
@@ -42,12 +41,7 @@ def main(argv=None) -> int:
     method, cfg, overrides = method_config("masp", SETTINGS + [f"updates={args.updates}"], "drone-20")
     train("drone-20", cfg, args.out, seed=0, resume=args.resume, init=SHIPPED, overrides=overrides,
           progress=False, method=method, command=f"python -m experiments.drone_sense --sense {args.sense}")
-    with open(Path(args.out) / "progress.csv") as f:
-        for row in csv.DictReader(f):
-            if row["eval_sr"]:
-                sr, st, cr = (float(row[f"eval_{k}"]) for k in ("sr", "steps", "cr"))
-                print(f"iteration {row['iteration']:>3}  wall {float(row['wall_s']):6.0f} s  validation SR {sr:.3f}  "
-                      f"Steps {st:6.1f}  CR {cr:.4f}")
+    print_validation(args.out)
     return 0
 
 
