@@ -238,3 +238,25 @@ def test_flat_frames_let_drones_pass_where_the_spheres_touch(frame, crashed):
     w.reset(options={"agent_pos": pos})
     w.step(torch.full((1, 2, 4), HOVER_COMMAND))
     assert bool((~w.alive).any()) == crashed
+
+
+def test_mpe50_goals_drives_the_executor_to_the_reference_goals():
+    from experiments import mpe50_goals
+    w = make("mpe-20", num_envs=3, seed=100)
+    obs = w.reset(seed=100)
+    pol = mpe50_goals.ReferenceGoals(w, "masp_lite/weights/mpe-20.pt", "squared", seed=100)
+    pol.reset(obs)
+    actions = pol.act(obs)
+    assert actions.shape == (3, 20) and actions.dtype == torch.long
+    want = hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], None, 2.0)
+    assert torch.equal(pol.goals, want)
+    assert not torch.equal(want, hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"], None, 1.0))
+
+
+def test_mpe50_goals_agreement_is_a_fraction_per_reference():
+    from experiments import mpe50_goals
+    rows = mpe50_goals.measure("mpe-5", "masp_lite/weights/mpe-5.pt", [100], 2)
+    assert set(rows) == {"own", "distance", "squared", "bottleneck"}
+    agree = rows["own"][1]
+    assert set(agree) == set(mpe50_goals.REFERENCES) and all(0.0 < v <= 1.0 for v in agree.values())
+    assert all(1 <= rows[k][0] <= 25 for k in rows)  # Steps within mpe-5's horizon
