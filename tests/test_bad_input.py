@@ -38,6 +38,13 @@ def test_bad_render_mode():
         parallel_env("mpe-5", render_mode="ansi")
 
 
+@pytest.mark.skipif(torch.cuda.is_available(), reason="a CUDA device is visible: 'cuda' is a valid device here")
+@pytest.mark.parametrize("name", ["mpe-5", "drone-5"])
+def test_cuda_without_a_cuda_device_is_one_clear_error(name):
+    with pytest.raises(ValueError, match="device 'cuda'.*expected 'cpu'"):
+        make(name, device="cuda")
+
+
 # ------------------------------------------------------------------ batched world actions
 @pytest.fixture
 def world():
@@ -147,10 +154,56 @@ def test_unknown_reset_option_fails_in_the_batched_world():
     assert "agent_position" in str(e.value) and "agent_pos" in str(e.value)
 
 
-def test_unknown_reset_option_warns_in_the_pettingzoo_face():
+@pytest.mark.parametrize("name", ["mpe-5", "drone-5"])
+def test_a_near_miss_of_a_reset_option_fails_in_the_pettingzoo_face(name):
+    n, d = (5, 2) if name == "mpe-5" else (5, 3)
+    with pytest.raises(ValueError, match="'agent_position'.*did you mean 'agent_pos'"):
+        parallel_env(name).reset(options={"agent_position": np.zeros((n, d))})
+
+
+def test_an_unrelated_reset_option_only_warns_in_the_pettingzoo_face():
     # PettingZoo's parallel_api_test itself passes options={"options": 1}: warn, don't fail
-    with pytest.warns(UserWarning, match="agent_position.*agent_pos"):
-        parallel_env("mpe-5").reset(options={"agent_position": np.zeros((5, 2))})
+    with pytest.warns(UserWarning, match="'options'.*agent_pos"):
+        parallel_env("mpe-5").reset(options={"options": 1})
+
+
+@pytest.mark.parametrize("name, option, value, words", [
+    ("mpe-5", "agent_pos", 1e300, "agent_pos.*expected values in.*got 1e\\+300"),
+    ("mpe-5", "landmark_pos", -50.0, "landmark_pos.*expected values in"),
+    ("mpe-5", "agent_vel", 1e6, "agent_vel.*expected values in"),
+    ("drone-5", "agent_pos", 1e200, "agent_pos.*expected values in"),
+    ("drone-5", "agent_pos", -0.5, "agent_pos.*expected values in"),  # below the floor (z column)
+    ("drone-5", "landmark_pos", 4.0, "landmark_pos.*expected values in"),  # above the ceiling
+])
+def test_a_start_outside_the_world_is_refused(name, option, value, words, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo would write MUJOCO_LOG.TXT here had the body been simulated
+    w = make(name, seed=0)
+    start = w.reset(seed=0)[option if option != "agent_vel" else "agent_pos"].clone()[0].numpy()
+    given = start.astype(np.float64) if option != "agent_vel" else np.zeros(start.shape)
+    given[0, -1 if name == "drone-5" else 0] = value
+    with pytest.raises(ValueError, match=words):
+        w.reset(options={option: given})
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("name", ["mpe-5", "drone-5"])
+def test_reset_env_ids_as_a_bool_mask_resets_exactly_the_masked_worlds(name):
+    w = make(name, num_envs=4, seed=0)
+    before = w.reset(seed=0)["landmark_pos"].clone()
+    after = w.reset(env_ids=torch.zeros(4, dtype=torch.bool))["landmark_pos"]  # nothing done: nothing reset
+    assert torch.equal(after, before)
+    after = w.reset(env_ids=[True, False, True, False])["landmark_pos"]
+    changed = [not torch.equal(after[i], before[i]) for i in range(4)]
+    assert changed == [True, False, True, False]
+
+
+@pytest.mark.parametrize("env_ids, words", [([2.9], "integer indices or a bool mask"),
+                                            (["a"], "integer indices or a bool mask"),
+                                            ([True, False], r"bool mask must have shape \(4,\)"),
+                                            ([4], r"indices in \[0, 4\)")])
+def test_bad_env_ids_are_refused(env_ids, words):
+    with pytest.raises(ValueError, match=words):
+        make("mpe-5", num_envs=4, seed=0).reset(env_ids=env_ids)
 
 
 # ------------------------------------------------------------------ bench command

@@ -45,6 +45,9 @@ class BatchedWorld:
             self.device = torch.device(device)
         except (RuntimeError, TypeError) as e:
             raise ValueError(f"device: expected a torch device such as 'cpu' or 'cuda', got {device!r}") from e
+        if self.device.type == "cuda" and not torch.cuda.is_available():
+            why = "this torch build has no CUDA" if torch.version.cuda is None else "no CUDA device is visible"
+            raise ValueError(f"device {str(device)!r}: {why} (torch {torch.__version__}); expected 'cpu'")
         self.num_envs, self.dtype = int(num_envs), dtype
         self.num_agents = self.num_landmarks = sc.num_agents
         self.num_obstacles, self.horizon = sc.num_obstacles, sc.horizon
@@ -52,10 +55,22 @@ class BatchedWorld:
 
     # ------------------------------------------------------------------ reset
     def _env_ids(self, env_ids) -> np.ndarray:
-        """The episodes a reset touches, as int64 indices (all when ``env_ids`` is None)."""
+        """The episodes a reset touches, as int64 indices (all when ``env_ids`` is None).
+
+        ``env_ids`` is either integer indices or a bool mask of shape ``(num_envs,)`` (as VMAS
+        and TorchRL pass ``done``): a mask resets exactly the worlds it marks. Floats, other
+        dtypes and masks of another length are one clear error."""
         if env_ids is None:
             return np.arange(self.num_envs)
-        ids = np.asarray(env_ids.cpu() if torch.is_tensor(env_ids) else env_ids, dtype=np.int64).reshape(-1)
+        raw = np.asarray(env_ids.cpu() if torch.is_tensor(env_ids) else env_ids)
+        if raw.dtype == bool:
+            if raw.shape != (self.num_envs,):
+                raise ValueError(f"env_ids: a bool mask must have shape ({self.num_envs},), got {raw.shape}")
+            return np.flatnonzero(raw).astype(np.int64)
+        if raw.size and not np.issubdtype(raw.dtype, np.integer):
+            raise ValueError(f"env_ids: expected integer indices or a bool mask of shape ({self.num_envs},), "
+                             f"got dtype {raw.dtype}")
+        ids = raw.astype(np.int64).reshape(-1)
         if len(ids) and (ids.min() < 0 or ids.max() >= self.num_envs):
             raise ValueError(f"env_ids: expected indices in [0, {self.num_envs}), got {ids.tolist()}")
         return ids
@@ -83,8 +98,25 @@ class BatchedWorld:
                 raise ValueError(f"reset option {name!r}: expected shape {shape} or {(n, *shape)}, got {a.shape}")
             if not np.isfinite(a).all():
                 raise ValueError(f"reset option {name!r}: expected finite values")
+            low, high = self._option_bounds(name)
+            bad = (a < low) | (a > high)
+            if bad.any():
+                raise ValueError(f"reset option {name!r}: expected values in {self._bounds_text(low, high)}, "
+                                 f"got {a[bad].flat[0]:g}")
             given[name] = a.copy()
         return given
+
+    def _option_bounds(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) per coordinate of a start-state option (broadcast over its last axis).
+
+        A start far outside the world is refused rather than simulated: the physics would
+        overflow (particles) or silently reset the body (MuJoCo)."""
+        return np.array(-np.inf), np.array(np.inf)
+
+    @staticmethod
+    def _bounds_text(low, high) -> str:
+        low, high = np.broadcast_arrays(np.atleast_1d(low), np.atleast_1d(high))
+        return " x ".join(f"[{lo:g}, {hi:g}]" for lo, hi in zip(low, high))
 
     def _random_order(self, n: int) -> np.ndarray:
         """(n, N) a random order of the agents per episode, from the world's generator."""

@@ -138,6 +138,16 @@ class DroneWorld(BatchedWorld):
         self.reset()
 
     # ------------------------------------------------------------------ reset
+    def _option_bounds(self, name):
+        """Positions inside the flight volume (above the floor, below ``CEILING``, over the map):
+        a start outside it is a crash before the first step, and MuJoCo would silently reset a
+        body sent far away. Velocities below 100 m/s and body rates below 1000 rad/s."""
+        if name in ("agent_pos", "landmark_pos"):
+            half = self.scenario.world_size / 2
+            return np.array([-half, -half, 1e-6]), np.array([half, half, CEILING])
+        limit = {"agent_vel": 100.0, "agent_angvel": 1000.0}.get(name, np.inf)
+        return np.array(-limit), np.array(limit)
+
     def reset(self, seed: int | None = None, options: dict | None = None, env_ids=None) -> dict[str, torch.Tensor]:
         """Start new episodes (all, or ``env_ids``) and return the observation (see module doc)."""
         if seed is not None:
@@ -147,6 +157,8 @@ class DroneWorld(BatchedWorld):
         n = len(ids)
         options = dict(options or {})
         given = self._start_state(options, n)
+        if n == 0:  # an empty id list or a mask with nothing marked: nothing to start
+            return self.observe()
         r = COLLISION_RADIUS + _GAP / 2
         if "agent_pos" in given:
             pos = given["agent_pos"]

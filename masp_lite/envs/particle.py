@@ -91,6 +91,13 @@ class ParticleWorld(BatchedWorld):
         self._upper = torch.triu(torch.ones_like(eye), diagonal=1)
         self.reset()
 
+    def _option_bounds(self, name):
+        """Positions within one map width of the centre (the map itself spans half that either
+        way); velocities below ten map widths per second."""
+        ws = self.scenario.world_size
+        w = 10 * ws if name == "agent_vel" else ws
+        return np.array(-w), np.array(w)
+
     # ------------------------------------------------------------------ reset
     def reset(self, seed: int | None = None, options: dict | None = None,
               env_ids: torch.Tensor | list[int] | None = None) -> dict[str, torch.Tensor]:
