@@ -18,6 +18,7 @@ Only settings that the shipped weights use are here; the ones tried and not kept
 ``docs/research-log.md``.
 """
 import dataclasses
+import math
 import types
 import typing
 from dataclasses import dataclass, field
@@ -40,10 +41,10 @@ def _check(obj, name, low=None, high=None, integer=False):
         if isinstance(v, bool) or not isinstance(v, int) or (low is not None and v < low):
             raise ValueError(f"{name}: expected an int >= {low}, got {v!r}")
         return
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or (low is not None and v < low) or \
-            (high is not None and v > high):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or \
+            (low is not None and v < low) or (high is not None and v > high):
         bounds = f"in [{low}, {high}]" if high is not None else f">= {low}"
-        raise ValueError(f"{name}: expected a number {bounds}, got {v!r}")
+        raise ValueError(f"{name}: expected a finite number {bounds}, got {v!r}")
 
 
 @dataclass(frozen=True)
@@ -147,8 +148,10 @@ class PPOConfig:
             _check(self, name, 0.0, 1.0)
         for name in ("entropy_coef", "value_coef"):
             _check(self, name, 0.0)
-        for name in ("lr", "clip", "huber_delta", "max_grad_norm"):
-            _check(self, name, 0.0)
+        # a step above 1 or a clip above 1 cannot train (every ratio would pass); checked up front so that
+        # a run never starts only to write non-finite weights
+        for name, high in (("lr", 1.0), ("clip", 1.0), ("huber_delta", None), ("max_grad_norm", None)):
+            _check(self, name, 0.0, high)
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name}: expected a positive number, got {getattr(self, name)!r}")
 

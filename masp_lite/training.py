@@ -43,6 +43,7 @@ from pathlib import Path
 import torch
 
 from .algos.drone_trainer import DroneMASPTrainer
+from .algos.mappo import NonFiniteError
 from .algos.masp_trainer import MASPTrainer
 from .config import TrainConfig, field_types, parse_sets
 from .envs import OVERRIDES, Scenario, get_scenario, make
@@ -147,10 +148,34 @@ def _save_state(path: Path, state: dict) -> None:
 
 def _load_state(path: Path) -> dict:
     try:
-        return torch.load(path, map_location="cpu", weights_only=True)
+        state = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:
         raise ValueError(f"{path}: expected a training state saved by 'train', could not read it "
                          f"({type(e).__name__})") from None
+    try:
+        _check_finite(_tensors(state), "value")
+    except NonFiniteError as e:
+        raise ValueError(f"{path}: expected a training state with finite values; {e}") from None
+    return state
+
+
+def _tensors(tree, prefix=""):
+    """(name, tensor) of every floating-point tensor in a nested dict/list, names joined by '.'."""
+    items = tree.items() if isinstance(tree, dict) else enumerate(tree) if isinstance(tree, (list, tuple)) else ()
+    for k, v in items:
+        name = f"{prefix}{k}"
+        if isinstance(v, torch.Tensor):
+            if v.is_floating_point():
+                yield name, v
+        else:
+            yield from _tensors(v, name + ".")
+
+
+def _check_finite(named, what: str) -> None:
+    """Raise :class:`NonFiniteError` naming the first of ``named`` (name, tensor) that holds a NaN or inf."""
+    for name, t in named:
+        if not torch.isfinite(t).all():
+            raise NonFiniteError(f"{what} {name} is not finite")
 
 
 def _write_csv(path: Path, rows: list[dict]) -> None:
@@ -245,7 +270,15 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         bar = tqdm(total=cfg.run.updates, initial=trainer.iterations, unit="it", desc=f"{method} on {sc}")
     try:
         while trainer.iterations < cfg.run.updates:
-            row = trainer.iteration()
+            try:
+                row = trainer.iteration()
+                _check_finite(trainer.nets.named_parameters(), "parameter")
+            except NonFiniteError as e:
+                last = checkpoint_iterations(out)
+                kept = f"the last checkpoint ({state_path}, iteration {last}) is intact" if last is not None \
+                    else "no checkpoint was written"
+                raise NonFiniteError(f"training stopped at iteration {trainer.iterations + 1}: {e}; nothing was "
+                                     f"written, {kept}") from None
             row["wall_s"] = round(wall(), 2)
             if cfg.run.eval_every and trainer.iterations % cfg.run.eval_every == 0:
                 ev = evaluate_nets(trainer.nets, sc, overrides, cfg.run.eval_episodes)

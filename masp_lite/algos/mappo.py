@@ -29,7 +29,7 @@ from ..config import PPOConfig
 from ..nets.drones import gaussian_entropy, gaussian_log_prob
 
 __all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage",
-           "ppo_update"]
+           "ppo_update", "NonFiniteError"]
 
 
 def gae(rewards: torch.Tensor, values: torch.Tensor, next_value: torch.Tensor, gamma: float, lam: float,
@@ -144,6 +144,10 @@ class RolloutStorage:
             yield {k: v[idx] for k, v in flat.items()}
 
 
+class NonFiniteError(ValueError):
+    """A PPO update met a non-finite loss or gradient; raised before the optimizer steps."""
+
+
 def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: PPOConfig,
                value_norm: ValueNorm, generator: torch.Generator, epochs: int | None = None,
                distribution: str = "categorical") -> dict[str, float]:
@@ -179,10 +183,15 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
             pl = clipped_surrogate(logp, mb["logp"], mb["advantages"], cfg.clip, mb["mask"])
             vl = value_loss(values, mb["values"], mb["targets"], cfg.clip, cfg.huber_delta, mb["mask"])
             loss = pl + cfg.value_coef * vl - cfg.entropy_coef * entropy
+            for name, x in (("policy loss", pl), ("value loss", vl), ("entropy", entropy)):
+                if not torch.isfinite(x):
+                    raise NonFiniteError(f"the {name} is {x.item()}")
             optimizer.zero_grad()
             loss.backward()
-            nn.utils.clip_grad_norm_(actor.parameters(), cfg.max_grad_norm)
-            nn.utils.clip_grad_norm_(critic.parameters(), cfg.max_grad_norm)
+            for name, net in (("policy", actor), ("critic", critic)):
+                norm = nn.utils.clip_grad_norm_(net.parameters(), cfg.max_grad_norm)
+                if not torch.isfinite(norm):
+                    raise NonFiniteError(f"the {name}'s gradient norm is {norm.item()}")
             optimizer.step()
             stats["policy_loss"] += pl.item()
             stats["value_loss"] += vl.item()
