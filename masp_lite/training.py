@@ -178,6 +178,51 @@ def _check_finite(named, what: str) -> None:
             raise NonFiniteError(f"{what} {name} is not finite")
 
 
+def _take_lock(out: Path) -> Path:
+    """Create run folder ``out`` and hold its lock (``out/.lock``, this process's PID) for one run.
+
+    A second run into the same folder is refused naming the holder; a lock left by a process
+    that no longer runs (``kill -9``) is taken over. A folder that cannot be written is one
+    clear error."""
+    lock = out / ".lock"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        for _ in range(2):
+            try:
+                fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+            except FileExistsError:
+                holder = _lock_holder(lock)
+                if holder is not None:
+                    raise ValueError(f"{out} is being trained by process {holder} (lock {lock}); wait for it to "
+                                     f"finish or choose another --out") from None
+                lock.unlink(missing_ok=True)  # stale: its process is gone
+                continue
+            with os.fdopen(fd, "w") as f:
+                f.write(f"{os.getpid()}\n")
+            return lock
+    except OSError as e:
+        raise ValueError(f"--out {out}: expected a folder that can be written, could not write there "
+                         f"({e.strerror or type(e).__name__})") from None
+    raise ValueError(f"{out}: could not take the run's lock {lock}; another run is starting there")
+
+
+def _lock_holder(lock: Path) -> int | None:
+    """The PID in a run lock if that process still runs, else ``None``."""
+    try:
+        pid = int(lock.read_text().split()[0])
+        os.kill(pid, 0)
+    except PermissionError:  # it runs, as another user
+        return pid
+    except (OSError, ValueError, IndexError):
+        return None
+    return pid
+
+
+def _release_lock(lock: Path) -> None:
+    if _lock_holder(lock) == os.getpid():
+        lock.unlink(missing_ok=True)
+
+
 def _write_csv(path: Path, rows: list[dict]) -> None:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=CSV_FIELDS, extrasaction="ignore")
@@ -187,10 +232,20 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
 
 
 def _read_csv(path: Path, upto: int) -> list[dict]:
-    if not path.exists():
+    """The history of iterations 1..``upto`` from a run's ``progress.csv``; a missing or garbled file is an error."""
+    if upto == 0:
         return []
-    with open(path, newline="") as f:
-        return [r for r in csv.DictReader(f) if int(r["iteration"]) <= upto]
+    what = f"{path}: expected the history of the {upto} iterations in the training state"
+    if not path.exists():
+        raise ValueError(f"{what}; the file is missing (resuming would lose the curve)")
+    try:
+        with open(path, newline="") as f:
+            rows = [r for r in csv.DictReader(f) if int(r["iteration"]) <= upto]
+    except (KeyError, ValueError, TypeError, UnicodeDecodeError, csv.Error) as e:
+        raise ValueError(f"{what}; could not read it ({type(e).__name__}: {e})") from None
+    if [int(r["iteration"]) for r in rows] != list(range(1, upto + 1)):
+        raise ValueError(f"{what}; it holds iterations {[r['iteration'] for r in rows][:5]}...")
+    return rows
 
 
 def _bar_text(row: dict, rows: list[dict]) -> str:
@@ -240,6 +295,9 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         if diff or int(state.get("seed", -1)) != int(seed):
             raise ValueError(f"{state_path}: expected the same seed and settings as the interrupted run; "
                              f"differs in {diff or ['seed']}")
+        if cfg.run.updates < int(state["iterations"]):
+            raise ValueError(f"--set updates={cfg.run.updates}: expected at least the {state['iterations']} iterations "
+                             f"already done in {state_path} (updates={state['iterations']} ends the run there)")
         trainer.load_state_dict(state)
         wall_before, started = float(state["wall_s"]), state["started"]
         first_command = state.get("command")
@@ -251,66 +309,69 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         if a != b:
             raise ValueError(f"--init {init}: architecture {nets.arch} differs from the configured {trainer.nets.arch}")
         trainer.nets.load_state_dict(nets.state_dict())
-    out.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    wall = lambda: wall_before + time.perf_counter() - t0  # noqa: E731
-    sc = trainer.world.scenario.name
-
-    def save():  # state.pt last: a run stopped between the three files resumes from the previous state
-        st = trainer.state_dict()
-        st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started,
-                  command=first_command or command or default_command, init=str(init) if init is not None else "")
-        _write_csv(out / "progress.csv", rows)
-        save_weights(out / "weights.pt", trainer.nets, trainer.world.scenario)
-        _save_state(state_path, st)
-
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=cfg.run.updates, initial=trainer.iterations, unit="it", desc=f"{method} on {sc}")
+    lock = _take_lock(out)
     try:
-        while trainer.iterations < cfg.run.updates:
-            try:
-                row = trainer.iteration()
-                _check_finite(trainer.nets.named_parameters(), "parameter")
-            except NonFiniteError as e:
-                last = checkpoint_iterations(out)
-                kept = f"the last checkpoint ({state_path}, iteration {last}) is intact" if last is not None \
-                    else "no checkpoint was written"
-                raise NonFiniteError(f"training stopped at iteration {trainer.iterations + 1}: {e}; nothing was "
-                                     f"written, {kept}") from None
-            row["wall_s"] = round(wall(), 2)
-            if cfg.run.eval_every and trainer.iterations % cfg.run.eval_every == 0:
-                ev = evaluate_nets(trainer.nets, sc, overrides, cfg.run.eval_episodes)
-                row.update({f"eval_{k}": ev[k] for k in ("sr", "steps", "cr")})
-            rows.append({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
+        t0 = time.perf_counter()
+        wall = lambda: wall_before + time.perf_counter() - t0  # noqa: E731
+        sc = trainer.world.scenario.name
+
+        def save():  # state.pt last: a run stopped between the three files resumes from the previous state
+            st = trainer.state_dict()
+            st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started,
+                      command=first_command or command or default_command, init=str(init) if init is not None else "")
+            _write_csv(out / "progress.csv", rows)
+            save_weights(out / "weights.pt", trainer.nets, trainer.world.scenario)
+            _save_state(state_path, st)
+
+        bar = None
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=cfg.run.updates, initial=trainer.iterations, unit="it", desc=f"{method} on {sc}")
+        try:
+            while trainer.iterations < cfg.run.updates:
+                try:
+                    row = trainer.iteration()
+                    _check_finite(trainer.nets.named_parameters(), "parameter")
+                except NonFiniteError as e:
+                    last = checkpoint_iterations(out)
+                    kept = f"the last checkpoint ({state_path}, iteration {last}) is intact" if last is not None \
+                        else "no checkpoint was written"
+                    raise NonFiniteError(f"training stopped at iteration {trainer.iterations + 1}: {e}; nothing was "
+                                         f"written, {kept}") from None
+                row["wall_s"] = round(wall(), 2)
+                if cfg.run.eval_every and trainer.iterations % cfg.run.eval_every == 0:
+                    ev = evaluate_nets(trainer.nets, sc, overrides, cfg.run.eval_episodes)
+                    row.update({f"eval_{k}": ev[k] for k in ("sr", "steps", "cr")})
+                rows.append({k: (round(v, 5) if isinstance(v, float) else v) for k, v in row.items()})
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix_str(_bar_text(row, rows))
+                if trainer.iterations % cfg.run.checkpoint_every == 0 or trainer.iterations == cfg.run.updates:
+                    save()
+                if on_iteration is not None:
+                    on_iteration(trainer)
+        finally:
             if bar is not None:
-                bar.update(1)
-                bar.set_postfix_str(_bar_text(row, rows))
-            if trainer.iterations % cfg.run.checkpoint_every == 0 or trainer.iterations == cfg.run.updates:
-                save()
-            if on_iteration is not None:
-                on_iteration(trainer)
+                bar.close()
+        final = evaluate_nets(trainer.nets, sc, overrides, cfg.run.eval_episodes)
+        manifest = {
+            "method": method, "scenario": sc, "world": trainer.world.scenario.world, "overrides": dict(overrides or {}),
+            "seed": int(seed),
+            "command": first_command or command or default_command,
+            "last_command": command or default_command,
+            "init": str(init) if init is not None else None, "config": cfg.flat(),
+            "arch": dict(trainer.nets.arch), "iterations": trainer.iterations, "env_steps": trainer.env_steps,
+            "wall_clock_s": round(wall(), 1), "started": started,
+            "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "torch": torch.__version__,
+                        "torch_threads": torch.get_num_threads()},
+            "final_eval": {"episodes": cfg.run.eval_episodes, "seed": EVAL_SEED, **final},
+            "weights_sha256": sha256(out / "weights.pt"),
+        }
+        atomic_write_bytes(out / "manifest.json", (json.dumps(manifest, indent=2) + "\n").encode())
+        return manifest
     finally:
-        if bar is not None:
-            bar.close()
-    final = evaluate_nets(trainer.nets, sc, overrides, cfg.run.eval_episodes)
-    manifest = {
-        "method": method, "scenario": sc, "world": trainer.world.scenario.world, "overrides": dict(overrides or {}),
-        "seed": int(seed),
-        "command": first_command or command or default_command,
-        "last_command": command or default_command,
-        "init": str(init) if init is not None else None, "config": cfg.flat(),
-        "arch": dict(trainer.nets.arch), "iterations": trainer.iterations, "env_steps": trainer.env_steps,
-        "wall_clock_s": round(wall(), 1), "started": started,
-        "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "torch": torch.__version__,
-                    "torch_threads": torch.get_num_threads()},
-        "final_eval": {"episodes": cfg.run.eval_episodes, "seed": EVAL_SEED, **final},
-        "weights_sha256": sha256(out / "weights.pt"),
-    }
-    atomic_write_bytes(out / "manifest.json", (json.dumps(manifest, indent=2) + "\n").encode())
-    return manifest
+        _release_lock(lock)
 
 
 _RUN_INFO = ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s", "started", "finished", "machine",

@@ -52,3 +52,52 @@ def test_a_state_with_non_finite_values_is_refused_naming_file_and_value(tmp_pat
     torch.save(state, out / "state.pt")
     with pytest.raises(ValueError, match=rf"state.pt: expected a training state with finite values; value nets.{name}"):
         train("mpe-5", _cfg(), out, progress=False, resume=True)
+
+
+def test_a_second_run_into_the_same_folder_is_refused_and_a_stale_lock_taken_over(tmp_path):
+    import os
+    import subprocess
+    import sys
+    out = tmp_path / "run"
+    out.mkdir()
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (out / ".lock").write_text(f"{holder.pid}\n")
+        with pytest.raises(ValueError, match=rf"being trained by process {holder.pid}"):
+            train("mpe-5", _cfg(updates=1), out, progress=False)
+        assert not (out / "state.pt").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    train("mpe-5", _cfg(updates=1), out, progress=False)  # its holder is gone: a stale lock, taken over
+    assert (out / "manifest.json").exists() and not (out / ".lock").exists()  # released at the end
+    with pytest.raises(ValueError, match="stopped"):  # released on an error too
+        train("mpe-5", _cfg(updates=3), out, progress=False, resume=True,
+              on_iteration=lambda t: (_ for _ in ()).throw(ValueError("stopped")))
+    assert not (out / ".lock").exists() and os.getpid() > 0
+
+
+def test_an_out_folder_that_cannot_be_written_is_one_clear_error(tmp_path, capsys):
+    (tmp_path / "file").write_text("x")
+    assert main(["train", "--scenario", "mpe-5", "--out", str(tmp_path / "file" / "run"), "--quiet",
+                 "--set", "updates=1"]) == 2
+    err = capsys.readouterr().err
+    assert "expected a folder that can be written" in err and "Traceback" not in err
+
+
+def test_resume_keeps_the_history_honest(tmp_path):
+    out = tmp_path / "run"
+    train("mpe-5", _cfg(updates=2), out, progress=False)
+    with pytest.raises(ValueError, match=r"updates=1: expected at least the 2 iterations"):
+        train("mpe-5", _cfg(updates=1), out, progress=False, resume=True)
+    m = train("mpe-5", _cfg(updates=2), out, progress=False, resume=True)  # ends the run where it is
+    assert m["iterations"] == m["config"]["updates"] == 2
+    csv = (out / "progress.csv").read_bytes()
+    (out / "progress.csv").write_bytes(b"\x00\xff garbage")
+    with pytest.raises(ValueError, match="progress.csv: expected the history of the 2 iterations"):
+        train("mpe-5", _cfg(updates=3), out, progress=False, resume=True)
+    (out / "progress.csv").unlink()
+    with pytest.raises(ValueError, match="the file is missing"):
+        train("mpe-5", _cfg(updates=3), out, progress=False, resume=True)
+    (out / "progress.csv").write_bytes(csv)
+    assert train("mpe-5", _cfg(updates=3), out, progress=False, resume=True)["iterations"] == 3
