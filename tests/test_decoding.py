@@ -59,6 +59,18 @@ def test_joint_argmax_is_the_most_likely_distinct_assignment():
         assert got[b].tolist() == list(best)
 
 
+def test_squared_joint_argmax_minimises_the_summed_squared_negative_log_scores():
+    torch.manual_seed(2)
+    logits = 2 * torch.randn(40, 4, 4)
+    alive = torch.ones(40, 4, dtype=torch.bool)
+    got = joint_argmax(logits, alive, power=2.0)
+    logp = torch.log_softmax(logits, -1).double()
+    perms = list(itertools.permutations(range(4)))
+    for b in range(40):
+        assert got[b].tolist() == list(min(perms, key=lambda p: sum(logp[b, k, p[k]] ** 2 for k in range(4))))
+    assert not torch.equal(got, joint_argmax(logits, alive))  # the squares decide differently somewhere
+
+
 def test_joint_argmax_respects_masks_and_runs_out_of_goals_gracefully():
     logits = torch.zeros(1, 3, 4)
     logits[0, :, 0] = 5.0  # everyone prefers goal 0
@@ -80,7 +92,7 @@ def test_independent_goals_allows_duplicates():
                               torch.ones(1, 3, dtype=torch.bool))[0, 1, 2] == MASKED
 
 
-@pytest.mark.parametrize("decode", ["joint", "independent", "hungarian"])
+@pytest.mark.parametrize("decode", ["joint", "squared", "independent", "hungarian"])
 def test_policy_decoders(decode):
     from masp_lite.envs import make
     from masp_lite.nets.masp import MASPNets
@@ -90,7 +102,7 @@ def test_policy_decoders(decode):
     pol = MASPPolicy.from_nets(w, MASPNets(), decode=decode)
     obs = w.reset(seed=0)
     pol.act(obs)
-    if decode == "joint":
+    if decode in ("joint", "squared"):
         assert _distinct(pol.goals, obs["alive"])
     if decode == "hungarian":  # the diagnostic: exactly the Hungarian reference's goals
         assert torch.equal(pol.goals, hungarian(obs["agent_pos"], obs["landmark_pos"], obs["alive"]))

@@ -16,6 +16,14 @@ broken), and keep the literal rule as ``decode="independent"`` for comparison:
   conflict-free joint choice under the agents' own scores. This is scipy's
   ``linear_sum_assignment`` on ``-log S_intra``, one call per world (the solver the
   Hungarian reference uses, here on learned scores instead of distances);
+* **acting greedily, squared** (``decode="squared"``, :func:`joint_argmax` with ``power=2``):
+  the distinct goals minimising ``sum_k (-log S_intra^k(g_k))^2``, so that no agent is left
+  with a goal it scores poorly. Steps waits for the last landmark, so one agent sent to a
+  goal it barely chose costs more than several small compromises. On validation layouts
+  (evaluation seeds 100-102 x 100, same weights) it needs fewer Steps: mpe-50 50.13 ->
+  46.89 (training seed 0), mpe-20 24.93 -> 24.10, 27.85 -> 25.94, 24.74 -> 23.82 (seeds
+  0-2); mpe-5, mpe-20to10 and mpe-50to20 within 1 % (research log, "the Goal Matcher's
+  decoding"). It becomes the default once every record is re-made with it;
 * **sampling** (training, :func:`sequential_sample`): agents draw in a random order, each
   from its own categorical restricted to the goals not yet taken by agents earlier in
   the order (an autoregressive factorisation of a joint policy over distinct goals).
@@ -37,8 +45,9 @@ from scipy.optimize import linear_sum_assignment
 __all__ = ["DECODERS", "independent_goals", "random_goals", "joint_argmax", "sequential_sample", "conditional_logits",
            "taken_before", "MASKED"]
 
-DECODERS = ("joint", "independent")
-"""``joint``: conflict-free (default); ``independent``: every agent alone, duplicates allowed."""
+DECODERS = ("joint", "squared", "independent")
+"""``joint``: conflict-free (default); ``squared``: conflict-free, squared costs; ``independent``: every agent
+alone, duplicates allowed."""
 
 MASKED = -1e9
 """Logit given to a goal an agent may not choose (finite, so entropies stay finite)."""
@@ -121,16 +130,20 @@ def independent_goals(logits: torch.Tensor, goal_mask: torch.Tensor | None = Non
     return logits.masked_fill(~_allowed(goal_mask, logits).unsqueeze(1), MASKED).argmax(-1)
 
 
-def joint_argmax(logits: torch.Tensor, alive: torch.Tensor, goal_mask: torch.Tensor | None = None) -> torch.Tensor:
-    """Distinct goals maximising the summed log-scores of the alive agents, per world (B, N).
+def joint_argmax(logits: torch.Tensor, alive: torch.Tensor, goal_mask: torch.Tensor | None = None,
+                 power: float = 1.0) -> torch.Tensor:
+    """Distinct goals minimising the summed ``(-log S) ** power`` of the alive agents, per world (B, N).
 
-    Solved by ``linear_sum_assignment`` on ``-log_softmax(logits)`` over the alive agents
-    and allowed goals. Alive agents left without a goal (more of them than allowed goals)
-    and dropped agents take their own best allowed goal.
+    Solved by ``linear_sum_assignment`` on ``(-log_softmax(logits)) ** power`` over the alive
+    agents and allowed goals (``power=1``: the most likely distinct assignment). Alive agents
+    left without a goal (more of them than allowed goals) and dropped agents take their own
+    best allowed goal.
     """
     allowed = _allowed(goal_mask, logits)
     fallback = independent_goals(logits, allowed)
     cost = (-torch.log_softmax(logits.masked_fill(~allowed.unsqueeze(1), MASKED), -1)).detach().cpu().numpy()
+    if power != 1.0:
+        cost = cost.astype(np.float64) ** power
     am, gm = alive.cpu().numpy(), allowed.cpu().numpy()
     out = fallback.cpu().numpy().copy()
     for b in range(cost.shape[0]):  # scipy solves one matrix at a time

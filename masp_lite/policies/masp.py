@@ -138,7 +138,7 @@ class MASPPolicy:
         if self.decode == "independent":
             return self._pick(logits)
         if self.deterministic:
-            return joint_argmax(logits, alive, mask)
+            return joint_argmax(logits, alive, mask, 2.0 if self.decode == "squared" else 1.0)
         return sequential_sample(logits.cpu(), alive.cpu(), self.generator, None if mask is None else mask.cpu())[0] \
             .to(logits.device)
 
