@@ -260,3 +260,27 @@ def test_mpe50_goals_agreement_is_a_fraction_per_reference():
     agree = rows["own"][1]
     assert set(agree) == set(mpe50_goals.REFERENCES) and all(0.0 < v <= 1.0 for v in agree.values())
     assert all(1 <= rows[k][0] <= 25 for k in rows)  # Steps within mpe-5's horizon
+
+
+def test_minmax_assignment_minimises_the_longest_cost_then_the_sum():
+    import itertools
+
+    import numpy as np
+
+    from experiments.mpe50_decode import minmax_assignment
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        d = rng.random((4, 4))
+        r, c = minmax_assignment(d)
+        perms = list(itertools.permutations(range(4)))
+        best = min(perms, key=lambda p: (max(d[k, p[k]] for k in range(4)), sum(d[k, p[k]] for k in range(4))))
+        assert list(c[np.argsort(r)]) == list(best)
+
+
+def test_perturbed_joint_sample_draws_distinct_goals_with_unrestricted_log_probabilities():
+    from experiments.mpe50_joint_draw import perturbed_joint_sample
+    logits = torch.randn(3, 5, 5)
+    alive = torch.ones(3, 5, dtype=torch.bool)
+    goals, logp, rank = perturbed_joint_sample(logits, alive, torch.Generator().manual_seed(0))
+    assert all(len(set(g.tolist())) == 5 for g in goals) and not rank.any()
+    assert torch.allclose(logp, torch.log_softmax(logits, -1).gather(-1, goals.unsqueeze(-1)).squeeze(-1))
