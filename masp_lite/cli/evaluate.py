@@ -14,11 +14,11 @@ import os
 from pathlib import Path
 
 from ..config import field_types, parse_sets
-from ..envs import OVERRIDES, Scenario
+from ..envs import OVERRIDES, SCENARIOS, Scenario
 from ..evaluation import MAX_ENVS, evaluate, format_table
-from ..policies import get_factory, method_options, option_types
+from ..policies import get_factory, method_names, method_options, option_types
 
-__all__ = ["add_arguments", "run", "split_sets", "override_types", "check_writable", "EXAMPLES"]
+__all__ = ["add_arguments", "run", "split_sets", "override_types", "check_writable", "write_record", "EXAMPLES"]
 
 EXAMPLES = [
     "evaluate --method h-greedy --scenario mpe-20 --episodes 100 --seeds 0 1 2 --json out.json",
@@ -62,10 +62,14 @@ def check_writable(path) -> Path:
     Nothing is created now (:func:`run` makes missing folders when it writes): ``path`` must
     be a writable file, or its nearest existing folder must be a writable folder; a regular
     file on the way, or ``path`` itself a folder, fails."""
+    if not str(path).strip():
+        raise ValueError("--json: expected a file path such as 'out.json', got an empty string")
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"--json {str(path)!r} is a folder; expected a file path such as {str(path / 'out.json')!r}")
     if path.exists():
+        if not path.is_file():  # a device (/dev/full) or a pipe would swallow or refuse the record
+            raise ValueError(f"--json {str(path)!r} is not a regular file; expected a writable file path")
         if not os.access(path, os.W_OK):
             raise ValueError(f"--json {str(path)!r}: the file is not writable; expected a writable path")
         return path
@@ -74,16 +78,51 @@ def check_writable(path) -> Path:
         folder = folder.parent
     if not folder.is_dir():
         raise ValueError(f"--json {str(path)!r}: {str(folder)!r} is a file, not a folder; expected a writable path")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ValueError(f"--json {str(path)!r}: the folder {str(folder)!r} is not writable; expected a writable path")
+    probe = folder / f".masp-lite-probe-{os.getpid()}"
+    try:  # permissions alone do not tell (/proc, a read-only mount): write a probe file and remove it
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise PermissionError
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError:
+        raise ValueError(f"--json {str(path)!r}: the folder {str(folder)!r} is not writable; "
+                         f"expected a writable path") from None
     return path
 
 
+def write_record(record: dict, path: Path) -> Path:
+    """Write ``record`` to ``path``; if that fails after the run, beside the working folder; returns where.
+
+    A finished evaluation is never lost: when ``path`` cannot be written (it changed during the
+    run, the disk filled up) the record goes to ``evaluate-METHOD-SCENARIO.json`` in the
+    working folder (a numbered name if that exists), and a ValueError says both."""
+    text = json.dumps(record, indent=2) + "\n"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        return path
+    except OSError as e:
+        reason = e.strerror or type(e).__name__
+    stem = f"evaluate-{record['method']}-{record['scenario']}"
+    spare = next(p for k in range(10_000) if not (p := Path(f"{stem}{'-' + str(k) if k else ''}.json")).exists())
+    try:
+        spare.write_text(text)
+    except OSError:
+        print(text)
+        raise ValueError(f"--json {str(path)!r}: could not write the record ({reason}), nor a copy in the working "
+                         f"folder; it is printed above") from None
+    raise ValueError(f"--json {str(path)!r}: could not write the record ({reason}); it was written to "
+                     f"{str(spare)!r} instead")
+
+
 def add_arguments(parser) -> None:
-    parser.add_argument("--method", required=True, help="method name (see masp_lite.policies)")
-    parser.add_argument("--scenario", required=True, help="scenario preset, e.g. mpe-20")
+    parser.add_argument("--method", required=True, metavar="METHOD",
+                        help=f"one of: {', '.join(method_names())}")
+    parser.add_argument("--scenario", required=True, help=f"scenario preset, one of: {', '.join(SCENARIOS)}")
     parser.add_argument("--episodes", type=int, default=100, help="episodes per seed (default 100)")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="evaluation seeds")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2],
+                        help="evaluation seeds, distinct, >= 0 (default 0 1 2: the reported ones; 100+ for "
+                             "validation)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="scenario override or method option (repeatable)")
     parser.add_argument("--checkpoint", default=None, help="weights for a learned method")
@@ -91,20 +130,16 @@ def add_arguments(parser) -> None:
     parser.add_argument("--device", default="cpu", help="torch device (default cpu)")
     parser.add_argument("--num-envs", type=int, default=None, help=f"batch size (default ≤ {MAX_ENVS})")
     parser.add_argument("--format", default="markdown", choices=["markdown", "text", "latex"],
-                        help="table format printed on stdout")
+                        help="table format printed on stdout (default markdown)")
 
 
 def run(args) -> int:
     overrides, options = split_sets(args.set, args.method)
-    out = check_writable(args.json) if args.json else None
+    out = check_writable(args.json) if args.json is not None else None
     record = evaluate(args.method, args.scenario, episodes=args.episodes, seeds=args.seeds,
                       overrides=overrides, method_options=options, checkpoint=args.checkpoint,
                       device=args.device, num_envs=args.num_envs, progress=True)
     print(format_table([record], fmt=args.format))
     if out is not None:
-        try:
-            out.parent.mkdir(parents=True, exist_ok=True)
-            out.write_text(json.dumps(record, indent=2) + "\n")
-        except OSError as e:  # it changed during the run
-            raise ValueError(f"--json {str(out)!r}: could not write the record ({e})") from None
+        write_record(record, out)
     return 0

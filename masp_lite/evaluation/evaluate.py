@@ -15,17 +15,49 @@ import math
 import numpy as np
 import torch
 
-from ..envs import OVERRIDES, make
+from ..envs import OVERRIDES, get_scenario, make
 from ..policies import build_policy, get_factory
 from ..policies import method_options as method_options_of
 from ..weights import sha256
 from .metrics import EpisodeLog, collision_rate, reached_target, steps, success_rate
 from .rollouts import rollout_timings
 
-__all__ = ["evaluate", "MAX_ENVS"]
+__all__ = ["evaluate", "MAX_ENVS", "memory_estimate"]
 
 #: Most episodes run side by side in one batched world during evaluation.
 MAX_ENVS = 100
+#: Bytes per agent pair and world at the peak of an evaluation (pair features, distances, the
+#: networks' activations), measured for ``masp`` on the mpe-50 map: 0.5-0.65 kB at N = 400 and 1000.
+PAIR_BYTES = 1024
+#: The interpreter, torch and one method's networks, before any world.
+BASE_BYTES = 400 * 2 ** 20
+
+
+def memory_estimate(num_agents: int, num_envs: int) -> int:
+    """Bytes an evaluation of ``num_envs`` worlds of ``num_agents`` agents needs, roughly (it grows with N^2)."""
+    return BASE_BYTES + PAIR_BYTES * num_envs * num_agents ** 2
+
+
+def _available_bytes() -> int | None:
+    """Memory this machine can still give (``MemAvailable``), or ``None`` where that is unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def _check_memory(num_agents: int, num_envs: int) -> None:
+    need, have = memory_estimate(num_agents, num_envs), _available_bytes()
+    if have is not None and need > have:
+        fit = max(0, (have - BASE_BYTES) // (PAIR_BYTES * num_agents ** 2))
+        hint = f"pass num_envs={fit} (--num-envs {fit}) or fewer" if fit >= 1 else "choose fewer agents"
+        raise ValueError(f"{num_agents} agents in {num_envs} worlds side by side need about {need / 2 ** 30:.1f} GiB "
+                         f"(memory grows with N^2: ~{PAIR_BYTES} bytes per agent pair and world), more than the "
+                         f"{have / 2 ** 30:.1f} GiB available; {hint}")
 
 
 def _stats(x: np.ndarray) -> dict:
@@ -78,9 +110,18 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
                                                           not isinstance(s, bool) for s in seeds):
         raise ValueError(f"seeds: expected a non-empty list of ints, got {seeds!r}")
     seeds = [int(s) for s in seeds]
+    bad = [s for s in seeds if not 0 <= s < 2 ** 63]
+    if bad:
+        raise ValueError(f"seeds: expected ints from 0 to 2**63 - 1, got {bad}")
+    if len(set(seeds)) != len(seeds):  # the same episodes pooled twice would understate the std
+        raise ValueError(f"seeds: expected distinct seeds, got {seeds} (a repeated seed repeats its episodes)")
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes: expected a positive int, got {episodes!r}")
+    if num_envs is not None and (isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1):
+        raise ValueError(f"num_envs: expected a positive int (worlds per batch), got {num_envs!r}")
     B = min(episodes, num_envs or MAX_ENVS)
+    _check_memory(get_scenario(scenario, **overrides).num_agents if isinstance(scenario, str) else scenario.num_agents,
+                  B)
     bar = None
     logs, timings = [], []
     try:

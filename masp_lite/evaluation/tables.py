@@ -1,7 +1,8 @@
 """Paper-format tables of :func:`masp_lite.evaluation.evaluate` records.
 
-Every cell is "mean (std)" with two decimals, as in the paper's tables; Steps is a
-backslash when no episode reached SR 1 (the paper's rule). Plain text, markdown and LaTeX.
+Every cell is "mean (std)" with two decimals, as in the paper's tables (a mean just below 1
+gets the decimals it needs not to read 1.00: an SR of 0.999 left an episode unsolved); Steps is
+a backslash when no episode reached SR 1 (the paper's rule). Plain text, markdown and LaTeX.
 """
 from __future__ import annotations
 
@@ -21,9 +22,19 @@ def cell(stat, latex: bool = False) -> str:
     mean, std = (stat.get("mean"), stat.get("std")) if isinstance(stat, dict) else stat
     if mean is None:
         return r"$\backslash$" if latex else "\\"
+    m = _mean_text(mean)
     if latex:
-        return f"{mean:.2f}\\scriptsize{{({std:.2f})}}"
-    return f"{mean:.2f} ({std:.2f})"
+        return f"{m}\\scriptsize{{({std:.2f})}}"
+    return f"{m} ({std:.2f})"
+
+
+def _mean_text(mean: float) -> str:
+    """Two decimals, or as many more as it takes for a mean just below 1 not to read 1.00 (SR 0.999 is not all)."""
+    for digits in range(2, 7):
+        text = f"{mean:.{digits}f}"
+        if not (mean < 1 and float(text) >= 1):
+            return text
+    return text
 
 
 def _settings(values: dict) -> str:

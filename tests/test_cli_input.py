@@ -1,0 +1,58 @@
+"""The first hour's rough edges: every bad command-line value is one clear error, and no result is lost."""
+import json
+
+import pytest
+
+from masp_lite.__main__ import main
+from masp_lite.cli.evaluate import write_record
+from masp_lite.evaluation import evaluate
+from masp_lite.evaluation.tables import cell
+from masp_lite.policies import method_names
+
+FAST = ["evaluate", "--method", "h-greedy", "--scenario", "mpe-5", "--episodes", "1"]
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--seeds", "-1"], "seeds: expected ints from 0 to 2**63 - 1, got [-1]"),
+    (["--seeds", "0", "0", "0"], "seeds: expected distinct seeds"),
+    (["--seeds", "99999999999999999999"], "seeds: expected ints from 0 to 2**63 - 1"),
+    (["--json", ""], "--json: expected a file path such as 'out.json', got an empty string"),
+    (["--num-envs", "0"], "num_envs: expected a positive int"),
+    (["--json", "/proc/out.json"], "is not writable"),
+    (["--json", "/dev/full"], "is not a regular file"),
+])
+def test_bad_values_are_one_clear_error_before_the_run(argv, message, capsys):
+    assert main(FAST + argv) == 2
+    out = capsys.readouterr()
+    assert message in out.err and "Traceback" not in out.err
+    assert "h-greedy" not in out.out  # refused before the run: no table printed
+
+
+def test_a_record_that_cannot_be_written_after_the_run_goes_beside_the_working_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    record = {"method": "h-greedy", "scenario": "mpe-5", "sr": {"mean": 1.0, "std": 0.0}}
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(ValueError, match=r"could not write the record .*written to 'evaluate-h-greedy-mpe-5.json'"):
+        write_record(record, tmp_path / "file" / "out.json")
+    assert json.loads((tmp_path / "evaluate-h-greedy-mpe-5.json").read_text()) == record
+    with pytest.raises(ValueError, match="evaluate-h-greedy-mpe-5-1.json"):  # never over an earlier one
+        write_record(record, tmp_path / "file" / "out.json")
+    assert write_record(record, tmp_path / "ok" / "out.json") == tmp_path / "ok" / "out.json"
+
+
+def test_evaluate_help_lists_every_method_and_the_defaults(capsys):
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert all(m in text for m in method_names()) and len(method_names()) == 17
+    assert "(default 0 1 2" in text and "(default markdown)" in text and "mpe-50to20" in text
+
+
+def test_a_team_that_cannot_fit_in_memory_is_refused_with_the_estimate():
+    with pytest.raises(ValueError, match=r"5000 agents in 100 worlds side by side need about .* GiB .*N\^2"):
+        evaluate("h-greedy", "mpe-50", episodes=100, seeds=[0], overrides={"num_agents": 5000, "world_size": 200.0})
+
+
+def test_sr_below_one_never_reads_one():
+    assert cell((0.999, 0.03)) == "0.999 (0.03)" and cell((0.99996, 0.0)) == "0.99996 (0.00)"
+    assert cell((1.0, 0.0)) == "1.00 (0.00)" and cell((0.994, 0.1)) == "0.99 (0.10)"
