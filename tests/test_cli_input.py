@@ -56,3 +56,14 @@ def test_a_team_that_cannot_fit_in_memory_is_refused_with_the_estimate():
 def test_sr_below_one_never_reads_one():
     assert cell((0.999, 0.03)) == "0.999 (0.03)" and cell((0.99996, 0.0)) == "0.99996 (0.00)"
     assert cell((1.0, 0.0)) == "1.00 (0.00)" and cell((0.994, 0.1)) == "0.99 (0.10)"
+
+
+def test_play_prints_the_episode_and_ends_the_animation_when_solved(tmp_path, capsys):
+    from PIL import Image
+    out = tmp_path / "ep.gif"
+    assert main(["play", "--method", "h-greedy", "--scenario", "mpe-5", "--out", str(out), "--seed", "3"]) == 0
+    text = capsys.readouterr().out
+    rec = evaluate("h-greedy", "mpe-5", episodes=1, seeds=[3], num_envs=1)  # the same episode, as evaluate sees it
+    assert rec["sr"]["mean"] == 1.0 and rec["steps"]["mean"] < 25       # solved before mpe-5's horizon
+    assert f"SR 1.00  Steps {rec['steps']['mean']:.0f}  CR {rec['cr']['mean']:.2f}" in text
+    assert Image.open(out).n_frames == rec["steps"]["mean"] + 1        # the reset frame, then one per step

@@ -7,6 +7,7 @@ go to the scenario, other keys to the method (the 3-D export takes scenario over
 """
 from __future__ import annotations
 
+from ..evaluation.tables import cell
 from ..viz.play import play
 from .evaluate import split_sets
 
@@ -31,7 +32,10 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     overrides, options = split_sets(args.set, args.method)
-    path = play(args.method, args.scenario, args.out, seed=args.seed, overrides=overrides,
-                method_options=options, goals=args.goals)
+    path, result = play(args.method, args.scenario, args.out, seed=args.seed, overrides=overrides,
+                        method_options=options, goals=args.goals)
+    steps = "\\ (never solved)" if result["steps"] is None else f"{result['steps']:.0f}"
+    print(f"{args.method} on {args.scenario}, episode seed {args.seed}: SR {cell((result['sr'], 0.0)).split()[0]}  "
+          f"Steps {steps}  CR {result['cr']:.2f}")
     print(f"wrote {path}")
     return 0

@@ -5,24 +5,47 @@
   agent to the goal the policy currently pursues;
 * ``.html``, and every drone scenario: a standalone 3-D meshcat page from
   :func:`masp_lite.viz.meshcat3d.play_to_html`.
+
+:func:`play` also returns the episode's SR, Steps and CR, computed by the evaluation's own
+metrics (:mod:`masp_lite.evaluation.metrics`); a 2-D animation ends at the step the episode is
+solved (SR 1), so a 51-step episode is not followed by 40 still frames.
 """
 from __future__ import annotations
 
 import importlib
 from pathlib import Path
 
+import numpy as np
+import torch
+
 from ..envs import get_scenario, make
+from ..evaluation.metrics import EpisodeLog, collision_rate, reached_target, steps, success_rate
 from ..policies import build_policy, get_factory
 from ..policies import method_options as options_of
 
-__all__ = ["play"]
+__all__ = ["play", "frames_log", "summary"]
+
+
+def frames_log(frames: list[dict]) -> EpisodeLog:
+    """The :class:`EpisodeLog` of one recorded 2-D episode (``anim2d.record``'s frames)."""
+    stack = lambda key: torch.from_numpy(np.stack([f[key] for f in frames]))[None]  # noqa: E731
+    total = torch.tensor([f["collisions"] for f in frames])
+    return EpisodeLog(stack("covered"), stack("reached"), (total[1:] - total[:-1])[None], stack("alive"),
+                      varying=frames[0]["varying"], horizon=frames[0]["horizon"])
+
+
+def summary(log: EpisodeLog) -> dict:
+    """``{"sr", "steps", "cr"}`` of a one-episode log; ``steps`` is ``None`` when it never reached SR 1."""
+    return {"sr": float(success_rate(log)[0]), "cr": float(collision_rate(log)[0]),
+            "steps": float(steps(log)[0]) if bool(reached_target(log)[0]) else None}
 
 
 def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_options=None,
-         goals: bool = False) -> Path:
-    """Record one episode (world 0, seeded by ``seed``) and write it to ``out``; returns the path.
+         goals: bool = False) -> tuple[Path, dict]:
+    """Record one episode (world 0, seeded by ``seed``) and write it to ``out``; returns ``(path, summary)``.
 
-    ``goals`` (2-D only) draws each agent's line to its current goal, when the method exposes goals.
+    ``summary`` is the episode's ``{"sr", "steps", "cr"}`` (:func:`summary`). ``goals`` (2-D
+    only) draws each agent's line to its current goal, when the method exposes goals.
     """
     overrides, options = dict(overrides or {}), dict(method_options or {})
     sc = get_scenario(scenario, **overrides)
@@ -45,7 +68,9 @@ def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_
                              "and meshcat to be installed, or a .gif/.mp4 output") from None
         out.parent.mkdir(parents=True, exist_ok=True)
         meshcat3d.play_to_html(method, scenario, str(out), seed=seed, **overrides)
-        return out
+        from ..evaluation import evaluate  # the same episode (world 0, seed ``seed``), measured as evaluate does
+        rec = evaluate(method, scenario, episodes=1, seeds=[seed], overrides=overrides, num_envs=1)
+        return out, {k: rec[k]["mean"] for k in ("sr", "steps", "cr")}
     from .anim2d import animate, record, save
 
     factory = get_factory(method)
@@ -53,4 +78,8 @@ def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_
     if "seed" in options_of(factory)[0]:  # as evaluate does: the seed reaches the method too
         options.setdefault("seed", seed)
     policy = build_policy(factory, method, world, options)
-    return save(animate(record(world, policy, seed=seed), title=f"{method} on {sc.name}", goals=goals), out)
+    frames = record(world, policy, seed=seed)
+    result = summary(frames_log(frames))
+    if result["steps"] is not None:  # end at the step it was solved
+        frames = frames[: int(result["steps"]) + 1]
+    return save(animate(frames, title=f"{method} on {sc.name}", goals=goals), out), result
