@@ -67,3 +67,19 @@ def test_play_prints_the_episode_and_ends_the_animation_when_solved(tmp_path, ca
     assert rec["sr"]["mean"] == 1.0 and rec["steps"]["mean"] < 25       # solved before mpe-5's horizon
     assert f"SR 1.00  Steps {rec['steps']['mean']:.0f}  CR {rec['cr']['mean']:.2f}" in text
     assert Image.open(out).n_frames == rec["steps"]["mean"] + 1        # the reset frame, then one per step
+
+
+def test_the_readme_lists_every_method():
+    from pathlib import Path
+    row = next(line for line in (Path(__file__).parents[1] / "README.md").read_text().splitlines()
+               if line.startswith("| `masp_lite.policies`"))
+    assert all(f"`{m}`" in row for m in method_names()) and f"({len(method_names())})" in row
+
+
+@pytest.mark.parametrize("argv", [["bench", "--help"], *(["bench", t, "--help"] for t in
+                                                        ("env", "decide", "planners", "drones", "train"))])
+def test_every_bench_help_ends_with_examples(argv, capsys):
+    with pytest.raises(SystemExit):
+        main(argv)
+    text = capsys.readouterr().out
+    assert "examples:" in text and f"-m masp_lite {' '.join(argv[:-1])}" in text

@@ -4,8 +4,23 @@ from __future__ import annotations
 import argparse
 
 from ..bench import TARGETS, load_target
+from . import epilog
 
-__all__ = ["add_arguments", "run"]
+__all__ = ["add_arguments", "run", "EXAMPLES", "TARGET_EXAMPLES"]
+
+EXAMPLES = [
+    "bench                                  # every target with its defaults",
+    "bench env --worlds 64                  # one target, with its options",
+    "bench train --help                     # a target's options",
+]
+#: target -> examples shown at the end of ``bench TARGET --help``
+TARGET_EXAMPLES = {
+    "env": ["bench env", "bench env --worlds 64 --seconds 4 --json env.json"],
+    "decide": ["bench decide", "bench decide --agents 100"],
+    "planners": ["bench planners", "bench planners --scenario mpe-20 --methods h-orca h-rrtstar"],
+    "drones": ["bench drones", "bench drones --worlds 16 --threads 2"],
+    "train": ["bench train", "bench train --scenarios mpe-50 --methods masp --iterations 2"],
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -17,7 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _target_args(module, name: str, argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog=f"python -m masp_lite bench {name}",
-                                     description=TARGETS[name])
+                                     description=TARGETS[name], epilog=epilog(TARGET_EXAMPLES.get(name, ())),
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     if hasattr(module, "add_arguments"):
         module.add_arguments(parser)
     return parser.parse_args(argv)
