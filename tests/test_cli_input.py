@@ -83,3 +83,20 @@ def test_every_bench_help_ends_with_examples(argv, capsys):
         main(argv)
     text = capsys.readouterr().out
     assert "examples:" in text and f"-m masp_lite {' '.join(argv[:-1])}" in text
+
+
+def test_bench_env_ratios_follow_from_the_printed_rates(tmp_path, capsys):
+    import re
+    out = tmp_path / "env.json"
+    assert main(["bench", "env", "--seconds", "0.2", "--rounds", "2", "--threads", "1", "--worlds", "4",
+                 "--json", str(out)]) == 0
+    text, r = capsys.readouterr().out, json.loads(out.read_text())
+    rates = {k: float(v.replace(",", "")) for k, v in re.findall(r"(masp-lite|TorchRL face|beside it|mpe2 simple_spread"
+                                                               r"_v3 \(1 episode\))\s+.*?([\d,]+) agent-steps/s", text)}
+    if r["mpe2_agent_steps_per_s"] is not None:
+        assert r["ratio"]["value"] == r["masp_agent_steps_per_s"]["4"] / r["mpe2_agent_steps_per_s"]
+        shown = float(re.search(r"ratio masp-lite / mpe2 at 4 worlds: ([\d,]+)x", text)[1].replace(",", ""))
+        assert abs(shown - rates["masp-lite"] / rates["mpe2 simple_spread_v3 (1 episode)"]) <= 1
+    if r["torchrl_agent_steps_per_s"] is not None:
+        shown = float(re.search(r"overhead of the TorchRL face at 4 worlds: ([\d.]+)x", text)[1])
+        assert abs(shown - rates["beside it"] / rates["TorchRL face"]) < 0.01

@@ -9,15 +9,16 @@ TorchRL is installed (``pip install masp-lite[torchrl]``), the TorchRL face
 (:class:`~masp_lite.envs.torchrl.ParticleTorchRLEnv`) is measured too, at the batch size of
 the ratio, through ``step_and_maybe_reset`` as TorchRL's collectors step it (observations,
 rewards, metrics and auto-resets included); its overhead is its time per step over the native
-world's, both timed in alternating blocks of 10 steps in the same process (:func:`measure_torchrl`).
+world's, both timed in alternating blocks of 10 steps in the same process (:func:`measure_torchrl`),
+and both rates are printed, so the overhead is their ratio.
 
 What is counted: one agent-step is one agent advanced by one environment step
 (``steps × worlds × agents``). Episode resets **are included** in the timed loop (a world
 that reaches its horizon is reset, as in training), and so is drawing the random actions.
 Each measurement warms up for a few steps, then runs for ``--seconds`` of wall time, split
-into ``--rounds`` that alternate between masp-lite, its TorchRL face and mpe2; each figure
-is the median over rounds and each ratio the median of the per-round ratios, so a load
-change mid-run hits every side alike.
+into ``--rounds`` that alternate between masp-lite, its TorchRL face and mpe2, so a load
+change mid-run hits every side alike; each figure is the median over rounds, and every
+printed ratio is the ratio of two printed figures.
 
 The machine's load average is printed before and after: torch's intra-op threads degrade
 badly when the cores are shared (on a busy 2-core machine, ``--threads 2`` measured ~25×
@@ -69,12 +70,13 @@ def measure_masp(num_envs: int, seconds: float, seed: int = 0) -> float:
 
 
 def measure_torchrl(num_envs: int, seconds: float, seed: int = 0, block: int = 10) -> tuple[float, float] | None:
-    """(agent-steps/s of the TorchRL face, its overhead) over ``num_envs`` mpe-50 worlds; None without TorchRL.
+    """(agent-steps/s of the TorchRL face, of the native world beside it) over ``num_envs`` mpe-50 worlds.
 
-    The face steps through ``step_and_maybe_reset`` (random actions, auto-resets), a native world of
-    the same size through ``step`` and ``reset``; the two alternate in blocks of ``block`` steps for
-    ``seconds`` of wall time, and the overhead is the ratio of their median block times, so that
-    other work on the machine slows both sides of a pair alike."""
+    ``None`` without TorchRL. The face steps through ``step_and_maybe_reset`` (random actions,
+    auto-resets), a native world of the same size through ``step`` and ``reset``; the two
+    alternate in blocks of ``block`` steps for ``seconds`` of wall time, and each rate comes from
+    its median block time, so that other work on the machine slows both sides alike. The
+    overhead is the second rate over the first."""
     if importlib.util.find_spec("torchrl") is None:
         return None
     from ..envs.torchrl import ParticleTorchRLEnv
@@ -106,8 +108,8 @@ def measure_torchrl(num_envs: int, seconds: float, seed: int = 0, block: int = 1
     while time.perf_counter() - start < seconds or not face:
         face.append(timed(face_step))
         native.append(timed(native_step))
-    face_time = statistics.median(face)
-    return num_envs * env.num_agents / face_time, face_time / statistics.median(native)
+    agent_steps = num_envs * env.num_agents
+    return agent_steps / statistics.median(face), agent_steps / statistics.median(native)
 
 
 def measure_mpe2(seconds: float, num_agents: int = 50, horizon: int = 90, seed: int = 0) -> float | None:
@@ -158,23 +160,25 @@ def run(args: argparse.Namespace) -> int:
     masp = {b: statistics.median(v) for b, v in masp_rounds.items()}
     for b in args.worlds:
         print(f"  masp-lite  {b:>5} world(s)      {masp[b]:>14,.0f} agent-steps/s")
-    trl = overhead = None
+    trl = overhead = beside = None
     if trl_rounds[0] is None:
         print("  TorchRL not installed: no TorchRL-face measurement")
     else:
         trl = statistics.median(t for t, _ in trl_rounds)
-        overhead = statistics.median(o for _, o in trl_rounds)
+        beside = statistics.median(n for _, n in trl_rounds)
+        overhead = beside / trl
         print(f"  TorchRL face {base:>3} world(s)      {trl:>14,.0f} agent-steps/s")
+        print(f"  native world beside it         {beside:>14,.0f} agent-steps/s (blocks alternating with the face)")
         print(f"  overhead of the TorchRL face at {base} worlds: {overhead:.2f}x the native world's time "
-              "(blocks of steps alternating with a native world, median over rounds)")
+              f"({beside:,.0f} / {trl:,.0f})")
     ref = ratio = None
     if ref_rounds[0] is None:
         print("  mpe2 not installed: no reference measurement")
     else:
         ref = statistics.median(ref_rounds)
         print(f"  mpe2 simple_spread_v3 (1 episode) {ref:>14,.0f} agent-steps/s")
-        ratio = statistics.median(m / q for m, q in zip(masp_rounds[base], ref_rounds))
-        print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x (median over rounds)")
+        ratio = masp[base] / ref
+        print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x ({masp[base]:,.0f} / {ref:,.0f})")
     load_after = load_average()
     print(f"  load average after: {load_after}")
     if args.json:
@@ -185,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
                   "masp_agent_steps_per_s": {str(b): v for b, v in masp.items()},
                   "mpe2_agent_steps_per_s": ref,
                   "ratio": None if ratio is None else {"worlds": base, "value": ratio},
-                  "torchrl_agent_steps_per_s": trl,
+                  "torchrl_agent_steps_per_s": trl, "native_beside_torchrl_agent_steps_per_s": beside,
                   "torchrl_overhead": None if overhead is None else {"worlds": base, "value": overhead}}
         write_json(args.json, result)
         print(f"  wrote {args.json}")
