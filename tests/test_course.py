@@ -45,8 +45,8 @@ def test_check_failure_names_first_mismatch_and_falls_back(capsys):
     got = course.check(wrong, _ref, inputs=_cases, name="scale-bad")
     out = capsys.readouterr().out
     assert got is _ref
-    assert out.startswith("✗ scale-bad failed on case 0: output['y'][1, 0]: got")
-    assert "1 of 6 entries differ" in out
+    assert out.startswith("✗ scale-bad failed on case 0: 1 of 6 entries of output['y'] differ beyond tolerance")
+    assert "largest difference 0.5 at output['y'][1, 0]: got" in out
     with pytest.raises(AssertionError, match="scale-bad: failed"):
         course.assert_passed("scale-bad")
     with pytest.raises(AssertionError):

@@ -62,8 +62,8 @@ Build cells with :mod:`masp_lite.course.authoring` (``markdown``, ``code``,
 Ship notebooks without outputs (``jupyter nbconvert --clear-output --inplace``, or build
 them with :func:`masp_lite.course.authoring.notebook`).
 """
-from .checking import RESULTS, Outcome, assert_passed, check, compare
+from .checking import RESULTS, ExerciseNotPassed, LibraryUnavailable, Outcome, assert_passed, check, compare, unavailable
 from .session import FAST_ENV, fast_mode, setup, show
 
-__all__ = ["check", "assert_passed", "compare", "Outcome", "RESULTS", "fast_mode", "setup", "show",
-           "FAST_ENV"]
+__all__ = ["check", "assert_passed", "compare", "unavailable", "Outcome", "RESULTS", "LibraryUnavailable",
+           "ExerciseNotPassed", "fast_mode", "setup", "show", "FAST_ENV"]
