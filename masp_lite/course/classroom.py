@@ -148,9 +148,9 @@ def main(argv: list[str] | None = None) -> int:
     folder = Path(args.folder)
     for path in written:
         print(f"wrote {path}")
-    print(f"wrote {folder / 'nbgrader_config.py'}\n"
-          f"next: cd {folder} && ../.venv/bin/nbgrader generate_assignment {Path(written[0]).parent.name}"
-          if written else "")
+    print(f"wrote {folder / 'nbgrader_config.py'}")
+    nbgrader = os.path.relpath(Path(sys.executable).parent / "nbgrader", folder.resolve())
+    print(f"next: cd {folder} && {nbgrader} generate_assignment {written[0].parent.name}")
     return 0
 
 

@@ -1,0 +1,108 @@
+"""An instructor's nbgrader cycle on a course folder from ``python -m masp_lite.course.classroom init``.
+
+The README's instructor section, run as written (nbgrader's own commands, from inside the course
+folder, without activating the environment) on one chapter with three submissions: the
+solutions (full marks), the untouched release (zero) and the solutions with one exercise
+wrong (that exercise's points short).
+"""
+import csv
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from masp_lite.course import classroom
+
+ROOT = Path(__file__).resolve().parents[1]
+CHAPTER = "02_goal_assignment"
+BIN = Path(sys.executable).parent
+
+
+def _nbgrader(folder, *args, timeout=900):
+    # PATH without the environment's bin/: the course folder's config must find alembic by itself
+    path = os.pathsep.join(p for p in os.environ.get("PATH", "").split(os.pathsep) if Path(p) != BIN)
+    env = dict(os.environ, PATH=path)
+    env.pop("MASP_LITE_FAST", None)  # the course folder's config sets fast mode for grading
+    proc = subprocess.run([str(BIN / "nbgrader"), *args], cwd=folder, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+    assert proc.returncode == 0, f"nbgrader {' '.join(args)}:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    return proc
+
+
+def _cells_by_id(nb):
+    return {c.metadata["nbgrader"]["grade_id"]: c for c in nb.cells if "nbgrader" in c.metadata}
+
+
+def _submit(folder, student, nb):
+    dst = folder / "submitted" / student / CHAPTER / f"{CHAPTER}.ipynb"
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    nbformat.write(nb, dst)
+
+
+def test_init_writes_an_nbgrader_course_folder(tmp_path):
+    written = classroom.init(tmp_path / "course")
+    assert [p.parent.name for p in written] == classroom.chapters()
+    for p in written:
+        assert p == tmp_path / "course" / "source" / p.stem / f"{p.stem}.ipynb"
+        assert p.read_bytes() == (ROOT / "solutions" / p.name).read_bytes()
+    assert (tmp_path / "course" / "nbgrader_config.py").is_file()
+    assert (tmp_path / "course" / "gradebook.db").is_file()
+    with pytest.raises(ValueError, match="exists"):
+        classroom.init(tmp_path / "course", ["03"])
+    assert classroom.init(tmp_path / "course", ["03"], force=True)[0].parent.name == "03_graph_encoders"
+    with pytest.raises(ValueError, match="unknown chapter"):
+        classroom.init(tmp_path / "other", ["99"])
+    assert classroom.main(["init", str(tmp_path / "third"), "nope"]) == 2
+
+
+@pytest.mark.slow
+def test_instructor_cycle_grades_three_submissions(tmp_path):
+    folder = tmp_path / "classroom"
+    proc = subprocess.run([sys.executable, "-m", "masp_lite.course.classroom", "init", str(folder), CHAPTER],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    _nbgrader(folder, "generate_assignment", CHAPTER)
+    release = nbformat.read(folder / "release" / CHAPTER / f"{CHAPTER}.ipynb", as_version=4)
+    shipped = nbformat.read(ROOT / "notebooks" / f"{CHAPTER}.ipynb", as_version=4)
+    assert [c.source for c in release.cells] == [c.source for c in shipped.cells]  # the release is notebooks/
+
+    source = nbformat.read(ROOT / "solutions" / f"{CHAPTER}.ipynb", as_version=4)
+    answers = {k: c.source for k, c in _cells_by_id(source).items() if c.metadata["nbgrader"]["solution"]}
+    points = {k: c.metadata["nbgrader"]["points"] for k, c in _cells_by_id(source).items()
+              if c.metadata["nbgrader"]["grade"]}
+    total = sum(points.values())
+
+    solved = nbformat.read(folder / "release" / CHAPTER / f"{CHAPTER}.ipynb", as_version=4)
+    for key, cell in _cells_by_id(solved).items():
+        if key in answers:
+            cell.source = answers[key]
+    _submit(folder, "ada", solved)                                   # every exercise solved
+    _submit(folder, "bob", release)                                  # the release, untouched
+    half = nbformat.read(folder / "release" / CHAPTER / f"{CHAPTER}.ipynb", as_version=4)
+    for key, cell in _cells_by_id(half).items():
+        if key in answers:
+            cell.source = answers[key]
+    wrong = _cells_by_id(half)["cost_matrix"]
+    assert "np.sqrt((diff ** 2).sum(axis=-1))" in wrong.source
+    wrong.source = wrong.source.replace("np.sqrt((diff ** 2).sum(axis=-1))", "(diff ** 2).sum(axis=-1)")  # squared
+    _submit(folder, "cy", half)                                      # one exercise wrong
+
+    _nbgrader(folder, "autograde", CHAPTER)
+    _nbgrader(folder, "generate_feedback", CHAPTER)
+    _nbgrader(folder, "export")
+    with open(folder / "grades.csv", newline="") as f:
+        grades = {row["student_id"]: row for row in csv.DictReader(f)}
+    assert set(grades) == {"ada", "bob", "cy"}
+    score = {s: float(row["score"]) for s, row in grades.items()}
+    assert all(float(row["max_score"]) == total for row in grades.values())
+    assert score == {"ada": total, "bob": 0.0, "cy": total - points["check_cost_matrix"]}, score
+    print("grades:", {s: f"{v:g}/{total:g}" for s, v in score.items()})
+    for student in ("ada", "bob", "cy"):
+        html = folder / "feedback" / student / CHAPTER / f"{CHAPTER}.html"
+        assert html.is_file() and html.stat().st_size > 10_000
+    feedback = (folder / "feedback" / "bob" / CHAPTER / f"{CHAPTER}.html").read_text(encoding="utf-8")
+    assert "not attempted yet" in feedback and "ExerciseNotPassed" in feedback
+    assert "checking.py" not in feedback  # a failed graded cell ends in one line, not a traceback
