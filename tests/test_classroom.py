@@ -29,6 +29,7 @@ def _nbgrader(folder, *args, timeout=900):
     proc = subprocess.run([str(BIN / "nbgrader"), *args], cwd=folder, env=env, capture_output=True, text=True,
                           timeout=timeout)
     assert proc.returncode == 0, f"nbgrader {' '.join(args)}:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    assert "Exception while loading config" not in proc.stderr, proc.stderr[-3000:]
     return proc
 
 
@@ -68,6 +69,18 @@ def test_instructor_cycle_grades_three_submissions(tmp_path):
     release = nbformat.read(folder / "release" / CHAPTER / f"{CHAPTER}.ipynb", as_version=4)
     shipped = nbformat.read(ROOT / "notebooks" / f"{CHAPTER}.ipynb", as_version=4)
     assert [c.source for c in release.cells] == [c.source for c in shipped.cells]  # the release is notebooks/
+    assert [c.metadata.get("tags") for c in release.cells] == [c.metadata.get("tags") for c in shipped.cells]
+
+    # nbgrader's exchange on one machine: release, a learner fetches and submits the release untouched, collect
+    _nbgrader(folder, "release_assignment", CHAPTER)
+    learner = tmp_path / "learner"
+    learner.mkdir()
+    exchange = [f"--Exchange.root={folder / 'exchange'}", "--course=masp-lite"]
+    _nbgrader(learner, "fetch_assignment", CHAPTER, *exchange)
+    _nbgrader(learner, "submit", CHAPTER, *exchange)
+    _nbgrader(folder, "collect", CHAPTER)
+    collected = [p.parent.parent.name for p in (folder / "submitted").glob(f"*/{CHAPTER}/{CHAPTER}.ipynb")]
+    assert len(collected) == 1
 
     source = nbformat.read(ROOT / "solutions" / f"{CHAPTER}.ipynb", as_version=4)
     answers = {k: c.source for k, c in _cells_by_id(source).items() if c.metadata["nbgrader"]["solution"]}
@@ -95,10 +108,10 @@ def test_instructor_cycle_grades_three_submissions(tmp_path):
     _nbgrader(folder, "export")
     with open(folder / "grades.csv", newline="") as f:
         grades = {row["student_id"]: row for row in csv.DictReader(f)}
-    assert set(grades) == {"ada", "bob", "cy"}
+    assert set(grades) == {"ada", "bob", "cy", collected[0]}
     score = {s: float(row["score"]) for s, row in grades.items()}
     assert all(float(row["max_score"]) == total for row in grades.values())
-    assert score == {"ada": total, "bob": 0.0, "cy": total - points["check_cost_matrix"]}, score
+    assert score == {"ada": total, "bob": 0.0, "cy": total - points["check_cost_matrix"], collected[0]: 0.0}, score
     print("grades:", {s: f"{v:g}/{total:g}" for s, v in score.items()})
     for student in ("ada", "bob", "cy"):
         html = folder / "feedback" / student / CHAPTER / f"{CHAPTER}.html"

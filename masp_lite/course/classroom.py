@@ -57,6 +57,8 @@ import sys
 
 from nbgrader.converters import GenerateAssignment
 
+from masp_lite.course.generate import TagGradedCells
+
 c = get_config()  # noqa: F821  (traitlets defines get_config for its configuration files)
 
 # nbgrader runs `alembic` as a command when it creates gradebook.db: find it beside this Python
@@ -70,8 +72,7 @@ c.CourseDirectory.root = os.path.dirname(os.path.abspath(__file__))
 c.CourseDirectory.course_id = {course_id!r}
 c.Exchange.root = os.path.join(c.CourseDirectory.root, "exchange")
 # the release equals the repository's notebooks/: graded cells tagged raises-exception
-c.GenerateAssignment.preprocessors = list(GenerateAssignment.preprocessors.default_value) + [
-    "masp_lite.course.generate.TagGradedCells"]
+c.GenerateAssignment.preprocessors = GenerateAssignment.class_traits()["preprocessors"].default() + [TagGradedCells]
 # chapters train and evaluate: no per-cell time limit (nbgrader's default is 30 s)
 c.Execute.timeout = None
 '''
