@@ -1,14 +1,21 @@
-"""An instructor's nbgrader cycle on a course folder from ``python -m masp_lite.course.classroom init``.
+"""The classroom: an instructor's nbgrader cycle on a course folder from ``python -m masp_lite.course.classroom init``.
 
 The README's instructor section, run as written (nbgrader's own commands, from inside the course
 folder, without activating the environment) on one chapter with three submissions: the
 solutions (full marks), the untouched release (zero) and the solutions with one exercise
-wrong (that exercise's points short).
+wrong (that exercise's points short). And the two JupyterLabs of the README: the learners'
+(its first command) without nbgrader's instructor tools, the instructors' with them.
 """
 import csv
+import json
 import os
+import re
+import shlex
+import socket
 import subprocess
 import sys
+import time
+import urllib.request
 from pathlib import Path
 
 import nbformat
@@ -119,3 +126,66 @@ def test_instructor_cycle_grades_three_submissions(tmp_path):
     feedback = (folder / "feedback" / "bob" / CHAPTER / f"{CHAPTER}.html").read_text(encoding="utf-8")
     assert "not attempted yet" in feedback and "ExerciseNotPassed" in feedback
     assert "checking.py" not in feedback  # a failed graded cell ends in one line, not a traceback
+
+
+# ------------------------------------------------------------------ the learners' lab and the instructors'
+def _readme_command(prefix):
+    """The README's first shell command that runs ``prefix`` (e.g. '.venv/bin/jupyter lab'), as arguments."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    for block in re.findall(r"```bash\n(.*?)```", text, flags=re.S):
+        for line in block.splitlines():
+            for part in line.split("#")[0].split("&&"):
+                if part.strip().startswith(prefix):
+                    return shlex.split(part.strip())
+    raise AssertionError(f"no command starting {prefix!r} in the README")
+
+
+def _page_config(args, cwd):
+    """Start JupyterLab with ``args`` (after ``jupyter lab``) and return the page config of its /lab page."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    token = "masp-lite-test"
+    cmd = [str(BIN / "jupyter"), "lab", *args, "--no-browser", f"--port={port}", "--ServerApp.ip=127.0.0.1",
+           f"--IdentityProvider.token={token}", "--ServerApp.port_retries=0"]
+    if hasattr(os, "geteuid") and os.geteuid() == 0:
+        cmd.append("--allow-root")  # CI containers run as root
+    env = dict(os.environ, JUPYTER_CONFIG_DIR=str(cwd / ".jupyter-user"), JUPYTER_RUNTIME_DIR=str(cwd / ".runtime"))
+    proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/lab?token={token}", timeout=10) as r:
+                    page = r.read().decode("utf-8")
+                break
+            except OSError:
+                if proc.poll() is not None or time.monotonic() > deadline:
+                    raise AssertionError(f"JupyterLab did not start: {' '.join(cmd)}\n{proc.stderr.read()[-3000:]}")
+                time.sleep(1)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    found = re.search(r'<script id="jupyter-config-data" type="application/json">(.*?)</script>', page, flags=re.S)
+    assert found, "no page config in JupyterLab's /lab page"
+    return json.loads(found.group(1))
+
+
+@pytest.mark.slow
+def test_learners_lab_hides_nbgrader_and_instructors_lab_shows_it(tmp_path):
+    learner = _readme_command(".venv/bin/jupyter lab")        # the README's first command
+    assert "notebooks/00_tour.ipynb" in learner
+    args = [a.replace("masp_lite/", f"{ROOT}/masp_lite/", 1) for a in learner[2:] if not a.endswith(".ipynb")]
+    config = _page_config(args, tmp_path)
+    names = [e["name"] for e in config["federated_extensions"]]
+    assert "@jupyter/nbgrader" in names                          # installed ...
+    assert "@jupyter/nbgrader" in config["disabledExtensions"]   # ... and off: no menu, Validate, Create Assignment
+
+    instructor = _readme_command(".venv/bin/jupyter lab --ServerApp.root_dir=.")
+    assert not any("app_settings_dir" in a for a in instructor)
+    config = _page_config([a for a in instructor[2:] if not a.endswith(".ipynb")], tmp_path)
+    assert "@jupyter/nbgrader" in [e["name"] for e in config["federated_extensions"]]
+    assert not any(d.startswith("@jupyter/nbgrader") for d in config["disabledExtensions"])
