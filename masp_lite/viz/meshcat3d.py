@@ -48,8 +48,8 @@ import warnings
 
 import numpy as np
 
-__all__ = ["record_episode", "build_scene", "episode_html", "play_to_html", "notebook_html", "marker_radius",
-           "drone_scale", "RecordingWindow", "LiveViewer"]
+__all__ = ["record_episode", "build_scene", "episode_html", "key_html", "play_to_html", "notebook_html",
+           "marker_radius", "drone_scale", "RecordingWindow", "LiveViewer"]
 
 _FPS_STEPS = 2  # env steps per animation frame by default (0.032 s of flight)
 LANDMARK, REACHED, CRASH = 0x228833, 0x66ee44, 0xee2222  # the scene's colours, named in the on-screen key
@@ -254,12 +254,20 @@ class RecordingWindow:
                 f"{commands}{controls}</script></body></html>")
 
 
-def _key(episode: dict) -> str:
-    """The on-screen key of a recorded episode: method, scenario, outcome, and what each colour means."""
+def _key(episode: dict, floating: bool = True) -> str:
+    """The key of a recorded episode: method, scenario, outcome, and what each colour means.
+
+    ``floating``: over the scene's top-left corner (the standalone page); otherwise a plain
+    block to put under the view (the playground, whose panes are too narrow for an overlay).
+    """
     sc, esc = episode["scenario"], html_lib.escape
     swatch = lambda colour, text: f'<i style="background:#{colour:06x}"></i>{text}<br>'  # noqa: E731
     covered = f"{int(np.sum(episode['covered']))}/{len(episode['covered'])} landmarks covered at the end"
-    return (f'<div id="masp-key"><b>{esc(str(episode.get("method", "")))}</b> on {esc(sc.name)}: {covered}<br>'
+    opening = ('<div id="masp-key">' if floating else
+               '<div class="masp-key" style="font:12px/1.45 sans-serif">'
+               '<style>.masp-key i{display:inline-block;width:10px;height:10px;border-radius:50%;'
+               'margin-right:5px}</style>')
+    return (f'{opening}<b>{esc(str(episode.get("method", "")))}</b> on {esc(sc.name)}: {covered}<br>'
             + swatch(LANDMARK, "landmark (translucent marker, stem to the floor)")
             + swatch(REACHED, "halo: landmark reached")
             + swatch(CRASH, "crash")
@@ -270,13 +278,18 @@ def _key(episode: dict) -> str:
             + "drag to rotate, scroll to zoom; replay: Open Controls → Animations</div>")
 
 
-def episode_html(episode: dict) -> str:
-    """The standalone page (str) of a recorded episode, with its on-screen key."""
+def key_html(episode: dict) -> str:
+    """The episode's key as a plain HTML block, to show beside or under a view without its overlay."""
+    return _key(episode, floating=False)
+
+
+def episode_html(episode: dict, key: bool = True) -> str:
+    """The standalone page (str) of a recorded episode, with its on-screen key unless ``key=False``."""
     mc = _meshcat()
     window = RecordingWindow()
     build_scene(mc.Visualizer(window=window), episode)
     title = f"masp-lite: {episode.get('method', '')} on {episode['scenario'].name}"
-    return window.static_html(overlay=_key(episode), title=title)
+    return window.static_html(overlay=_key(episode) if key else "", title=title)
 
 
 def play_to_html(method, scenario, out, seed: int = 0, **overrides) -> str:
