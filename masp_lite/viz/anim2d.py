@@ -41,7 +41,8 @@ import matplotlib
 import numpy as np
 import torch
 
-__all__ = ["record", "episode_numbers", "CONTROLS_PX", "draw_frame", "draw_obs", "frame_from_obs", "current_goals", "legend", "animate", "player",
+__all__ = ["record", "episode_numbers", "CONTROLS_PX", "draw_frame", "draw_obs", "frame_from_obs", "current_goals",
+           "legend", "animate", "player",
            "save", "Scene", "COLOURS", "MIN_AGENT_PT"]
 
 COLOURS = {"agent": "#1f77b4", "idle": "#9ecae1", "dropped": "#d9d9d9", "hit": "#d62728",

@@ -228,7 +228,8 @@ def _iframes(episodes, height: int = 420) -> str:
     """The two meshcat pages side by side, each with its key under it (an overlay would cover a narrow pane)."""
     from .meshcat3d import episode_html, key_html, notebook_html
 
-    cells = "".join(f'<div style="flex:1;min-width:320px">{notebook_html(episode_html(ep.recording, key=False), height).data}'
+    cells = "".join(f'<div style="flex:1;min-width:320px">'
+                    f"{notebook_html(episode_html(ep.recording, key=False), height).data}"
                     f"{key_html(ep.recording)}</div>" for ep in episodes)
     return f'<div style="display:flex;gap:8px">{cells}</div>'
 
