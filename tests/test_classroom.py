@@ -3,7 +3,7 @@
 The README's instructor section, run as written (nbgrader's own commands, from inside the course
 folder, without activating the environment) on one chapter with three submissions: the
 solutions (full marks), the untouched release (zero) and the solutions with one exercise
-wrong (that exercise's points short). And the two JupyterLabs of the README: the learners'
+wrong, or one exercise answered by calling the library (that exercise's points short). And the two JupyterLabs of the README: the learners'
 (its first command) without nbgrader's instructor tools, the instructors' with them.
 """
 import csv
@@ -109,23 +109,35 @@ def test_instructor_cycle_grades_three_submissions(tmp_path):
     assert "np.sqrt((diff ** 2).sum(axis=-1))" in wrong.source
     wrong.source = wrong.source.replace("np.sqrt((diff ** 2).sum(axis=-1))", "(diff ** 2).sum(axis=-1)")  # squared
     _submit(folder, "cy", half)                                      # one exercise wrong
+    cheat = nbformat.read(folder / "release" / CHAPTER / f"{CHAPTER}.ipynb", as_version=4)
+    for key, cell in _cells_by_id(cheat).items():
+        if key in answers:
+            cell.source = answers[key]
+    called = _cells_by_id(cheat)["cost_matrix"]
+    called.source = called.source.replace("    return np.sqrt((diff ** 2).sum(axis=-1))",
+                                          "    return assignment.distance_matrix(agent_pos, goal_pos)")
+    assert "assignment.distance_matrix" in called.source
+    _submit(folder, "dan", cheat)                                    # one exercise calls the library's version
 
     _nbgrader(folder, "autograde", CHAPTER)
     _nbgrader(folder, "generate_feedback", CHAPTER)
     _nbgrader(folder, "export")
     with open(folder / "grades.csv", newline="") as f:
         grades = {row["student_id"]: row for row in csv.DictReader(f)}
-    assert set(grades) == {"ada", "bob", "cy", collected[0]}
+    assert set(grades) == {"ada", "bob", "cy", "dan", collected[0]}
     score = {s: float(row["score"]) for s, row in grades.items()}
     assert all(float(row["max_score"]) == total for row in grades.values())
-    assert score == {"ada": total, "bob": 0.0, "cy": total - points["check_cost_matrix"], collected[0]: 0.0}, score
+    assert score == {"ada": total, "bob": 0.0, "cy": total - points["check_cost_matrix"],
+                     "dan": total - points["check_cost_matrix"], collected[0]: 0.0}, score
     print("grades:", {s: f"{v:g}/{total:g}" for s, v in score.items()})
-    for student in ("ada", "bob", "cy"):
+    for student in ("ada", "bob", "cy", "dan"):
         html = folder / "feedback" / student / CHAPTER / f"{CHAPTER}.html"
         assert html.is_file() and html.stat().st_size > 10_000
     feedback = (folder / "feedback" / "bob" / CHAPTER / f"{CHAPTER}.html").read_text(encoding="utf-8")
     assert "not attempted yet" in feedback and "ExerciseNotPassed" in feedback
     assert "checking.py" not in feedback  # a failed graded cell ends in one line, not a traceback
+    feedback = (folder / "feedback" / "dan" / CHAPTER / f"{CHAPTER}.html").read_text(encoding="utf-8")
+    assert "which the check makes unavailable" in feedback
 
 
 # ------------------------------------------------------------------ the learners' lab and the instructors'
