@@ -1,10 +1,11 @@
 """The classroom: an instructor's nbgrader cycle on a course folder from ``python -m masp_lite.course.classroom init``.
 
 The README's instructor section, run as written (nbgrader's own commands, from inside the course
-folder, without activating the environment) on one chapter with three submissions: the
-solutions (full marks), the untouched release (zero) and the solutions with one exercise
-wrong, or one exercise answered by calling the library (that exercise's points short). And the two JupyterLabs of the README: the learners'
-(its first command) without nbgrader's instructor tools, the instructors' with them.
+folder, without activating the environment) on one chapter with five submissions: the solutions
+(full marks), the untouched release placed by hand and the same through nbgrader's exchange
+(zero), the solutions with one exercise wrong, and the solutions with one exercise answered by
+calling the library (that exercise's points short). And the two JupyterLabs of the README: the
+learners' (its first command) without nbgrader's instructor tools, the instructors' with them.
 """
 import csv
 import json

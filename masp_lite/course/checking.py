@@ -190,11 +190,34 @@ def _targets(objects) -> list:
     return out
 
 
+def _functions(learner_fn, depth: int = 2) -> list:
+    """The learner's function and the functions its closure holds (``trips_of(my_fn)`` holds ``my_fn``)."""
+    found, todo = [], [(learner_fn, 0)]
+    while todo:
+        fn, level = todo.pop()
+        fn = getattr(fn, "__wrapped__", fn)
+        if not callable(fn) or any(fn is f for f in found):
+            continue
+        found.append(fn)
+        if level < depth:
+            todo += [(c.cell_contents, level + 1) for c in (getattr(fn, "__closure__", None) or ())
+                     if _filled(c) and callable(c.cell_contents)]
+    return found
+
+
+def _filled(cell) -> bool:
+    try:
+        cell.cell_contents  # noqa: B018 - an empty cell raises ValueError
+    except ValueError:
+        return False
+    return True
+
+
 def _namespaces(learner_fn) -> list[dict]:
     """Where a learner's function can find a library function: the library's modules, the notebook's globals."""
     spaces = [vars(m) for key, m in list(sys.modules.items())
               if m is not None and (key == "masp_lite" or key.startswith("masp_lite.") or key == "__main__")]
-    for fn in (learner_fn, getattr(learner_fn, "__wrapped__", None)):
+    for fn in _functions(learner_fn):
         g = getattr(fn, "__globals__", None)
         if isinstance(g, dict) and not any(g is s for s in spaces):
             spaces.append(g)
@@ -205,8 +228,9 @@ def _namespaces(learner_fn) -> list[dict]:
 def unavailable(objects, learner_fn=None):
     """Make library ``objects`` (functions, classes, methods) raise :class:`LibraryUnavailable` while inside.
 
-    Every module of the library and the learner's globals that hold one of them get a stand-in
-    under the same name; a method is replaced on its class. Everything is put back on exit.
+    Every module of the library, the learner's globals and the names its function closes over
+    that hold one of them get a stand-in; a method is replaced on its class. Everything is put
+    back on exit.
     """
     targets = _targets(objects)
     swaps = []  # (holder, key, original, is_class_attribute)
@@ -228,6 +252,11 @@ def unavailable(objects, learner_fn=None):
                     if value is obj:
                         swaps.append((space, key, value, False))
                         space[key] = stub
+            for fn in _functions(learner_fn):  # names the learner's function closes over
+                for cell in getattr(fn, "__closure__", None) or ():
+                    if _filled(cell) and cell.cell_contents is obj:
+                        swaps.append((cell, "cell_contents", obj, True))
+                        cell.cell_contents = stub
             qualname = getattr(obj, "__qualname__", "")
             module = sys.modules.get(getattr(obj, "__module__", None) or "")
             if "." in qualname and "<locals>" not in qualname and module is not None:
