@@ -7,6 +7,7 @@ folder, without activating the environment) on one chapter with five submissions
 calling the library (that exercise's points short). And the two JupyterLabs of the README: the
 learners' (its first command) without nbgrader's instructor tools, the instructors' with them.
 """
+import contextlib
 import csv
 import json
 import os
@@ -140,6 +141,11 @@ def test_instructor_cycle_grades_three_submissions(tmp_path):
     feedback = (folder / "feedback" / "dan" / CHAPTER / f"{CHAPTER}.html").read_text(encoding="utf-8")
     assert "which the check makes unavailable" in feedback
 
+    # the formgrader of the README's `../.venv/bin/jupyter lab`, started in the course folder, sees the cycle
+    with _lab([], folder) as get:
+        assignments = {a["name"]: a for a in json.loads(get("/formgrader/api/assignments"))}
+    assert assignments[CHAPTER]["num_submissions"] == 5 and assignments[CHAPTER]["max_score"] == total
+
 
 # ------------------------------------------------------------------ the learners' lab and the instructors'
 def _readme_command(prefix):
@@ -153,8 +159,9 @@ def _readme_command(prefix):
     raise AssertionError(f"no command starting {prefix!r} in the README")
 
 
-def _page_config(args, cwd):
-    """Start JupyterLab with ``args`` (after ``jupyter lab``) and return the page config of its /lab page."""
+@contextlib.contextmanager
+def _lab(args, cwd):
+    """A JupyterLab started with ``args`` (after ``jupyter lab``) in ``cwd``; yields ``get(path) -> text``."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
@@ -165,23 +172,35 @@ def _page_config(args, cwd):
         cmd.append("--allow-root")  # CI containers run as root
     env = dict(os.environ, JUPYTER_CONFIG_DIR=str(cwd / ".jupyter-user"), JUPYTER_RUNTIME_DIR=str(cwd / ".runtime"))
     proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+    def get(path):
+        sep = "&" if "?" in path else "?"
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}{path}{sep}token={token}", timeout=30) as r:
+            return r.read().decode("utf-8")
+
     try:
         deadline = time.monotonic() + 120
         while True:
             try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/lab?token={token}", timeout=10) as r:
-                    page = r.read().decode("utf-8")
+                get("/api/status")
                 break
             except OSError:
                 if proc.poll() is not None or time.monotonic() > deadline:
                     raise AssertionError(f"JupyterLab did not start: {' '.join(cmd)}\n{proc.stderr.read()[-3000:]}")
                 time.sleep(1)
+        yield get
     finally:
         proc.terminate()
         try:
             proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
             proc.kill()
+
+
+def _page_config(args, cwd):
+    """The page config JupyterLab serves on /lab when started with ``args``."""
+    with _lab(args, cwd) as get:
+        page = get("/lab")
     found = re.search(r'<script id="jupyter-config-data" type="application/json">(.*?)</script>', page, flags=re.S)
     assert found, "no page config in JupyterLab's /lab page"
     return json.loads(found.group(1))
