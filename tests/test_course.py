@@ -45,8 +45,8 @@ def test_check_failure_names_first_mismatch_and_falls_back(capsys):
     got = course.check(wrong, _ref, inputs=_cases, name="scale-bad")
     out = capsys.readouterr().out
     assert got is _ref
-    assert out.startswith("✗ scale-bad failed on case 0: output['y'][1, 0]: got")
-    assert "1 of 6 entries differ" in out
+    assert out.startswith("✗ scale-bad failed on case 0: 1 of 6 entries of output['y'] differ beyond tolerance")
+    assert "largest difference 0.5 at output['y'][1, 0]: got" in out
     with pytest.raises(AssertionError, match="scale-bad: failed"):
         course.assert_passed("scale-bad")
     with pytest.raises(AssertionError):
@@ -70,10 +70,52 @@ def test_check_not_attempted_and_errors_never_raise(capsys):
 def test_check_isolates_inputs_between_calls():
     def mutating(x, scale=2.0):
         x.mul_(0)  # in place: must not change what the reference sees
-        return _ref(torch.ones(3, 2), scale)
+        return {"y": torch.ones(3, 2) * scale, "n": 6}
 
     course.check(mutating, _ref, inputs=[(torch.ones(3, 2),)], name="mutating")
     assert course.RESULTS["mutating"].passed
+
+
+def test_check_makes_the_reference_and_what_it_wraps_unavailable(capsys):
+    from masp_lite.nets import encoders
+    from masp_lite.nets.encoders import s_inter as imported_name
+
+    def cases(seed):
+        g = torch.Generator().manual_seed(seed)
+        return torch.randn(2, 3, 4, generator=g), torch.randn(2, 3, 4, generator=g)
+
+    original = encoders.s_inter
+    for answer in (lambda q, k: encoders.s_inter(q, k), lambda q, k: imported_name(q, k)):
+        assert course.check(answer, encoders.s_inter, inputs=cases, name="s") is original
+        out = capsys.readouterr().out
+        assert out.startswith("✗ s failed: your function called the library's encoders.s_inter, which the check "
+                              "makes unavailable")
+    assert encoders.s_inter is original and imported_name is original  # put back afterwards
+    # a notebook-defined wrapper: what it wraps goes in hide=, methods included
+    cross = encoders.CrossEncoder(width=4)
+
+    def wrapper(y_a, y_t, d):
+        return cross.scores(y_a, y_t, d)
+
+    def via_forward(y_a, y_t, d):
+        return torch.softmax(cross(y_a, y_t, d), dim=-1)
+
+    inputs = [(torch.randn(1, 2, 4), torch.randn(1, 3, 4), torch.rand(1, 2, 3))]
+    assert course.check(via_forward, wrapper, inputs=inputs, name="c") is via_forward  # passes: nothing hidden
+    hide = [encoders.CrossEncoder.scores, encoders.CrossEncoder.forward]
+    course.check(via_forward, wrapper, inputs=inputs, name="c", hide=hide)
+    assert "CrossEncoder.forward, which the check makes unavailable" in capsys.readouterr().out.splitlines()[-1]
+    assert encoders.CrossEncoder.forward.__name__ == "forward" and cross(*inputs[0]).shape == (1, 2, 3)
+    with pytest.raises(ValueError, match="hide: expected a list"):
+        course.check(via_forward, wrapper, inputs=inputs, name="c", hide="encoders")
+
+
+def test_a_failed_graded_cell_is_one_line():
+    with pytest.raises(AssertionError) as info:
+        course.assert_passed("never-checked-either")
+    assert isinstance(info.value, course.ExerciseNotPassed)
+    assert info.value._render_traceback_() == [
+        "\x1b[0;31mExerciseNotPassed\x1b[0m: never-checked-either: not checked yet; run the check cell above first"]
 
 
 def test_compare_structures_and_tolerances():

@@ -131,3 +131,17 @@ def test_play_command_writes_html(tmp_path):
     assert main(["play", "--method", "h-greedy", "--scenario", "drone-5", "--out", str(out),
                  "--set", "horizon=20"]) == 0
     assert out.stat().st_size > 100_000 and "MeshCat.Viewer" in out.read_text()
+
+
+def test_twenty_drones_read_from_the_default_camera_and_animations_stay_in_reach(episode):
+    from masp_lite.envs import get_scenario
+
+    assert meshcat3d.drone_scale(get_scenario("drone-5")) == 1.0
+    assert meshcat3d.drone_scale(get_scenario("drone-20")) == 2.0
+    page = meshcat3d.episode_html(episode)
+    assert "drawn" not in page.split('id="masp-key"')[1].split("</div>")[0]   # drone-5: to scale
+    # the Scene tree folds and the Animations panel opens once every command is applied; the panel scrolls
+    assert "Promise.all(sent)" in page and "f.Scene.close()" in page and "f.Animations.open()" in page
+    assert ".dg.main{max-height:100vh;overflow-y:auto}" in page
+    big = dict(episode, scenario=get_scenario("drone-20"))
+    assert "drones drawn 2× their size" in meshcat3d.episode_html(big)

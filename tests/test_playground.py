@@ -84,6 +84,10 @@ def test_drones_show_two_meshcat_pages_and_report_a_bad_choice():
     a, b = pg.episodes
     assert same_layout(a, b) and a.frames is None and a.recording["pos"].shape[1] == 5
     assert pg.view3d.value.count("<iframe") == 2 and pg.view.layout.display == "none"
+    # each pane's key sits under its view, not over it (nor over meshcat's Open Controls bar)
+    assert 'id=&quot;masp-key&quot;' not in pg.view3d.value  # the pages inside the frames carry no key overlay
+    assert pg.view3d.value.count('class="masp-key"') == 2
+    assert pg.slider_note.value and "moves the metrics" in pg.slider_note.value and pg.step.description == "metrics at"
     pg.step.value = 12
     assert [m["t"] for m in pg.metrics] == [12, 12]
     pg.method_b.value = "h-capt"                      # a particle-only method: the status line says so

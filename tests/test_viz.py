@@ -282,3 +282,36 @@ def test_progress_step_ticks_do_not_overlap():
             assert a.x1 < b.x0, f"x tick labels overlap: {[t.get_text() for t in ax.get_xticklabels()]}"
     assert "50k" in [t.get_text() for t in fig.axes[0].get_xticklabels()]
     plt.close(fig)
+
+
+def test_video_controls_strip_stays_below_the_legend_and_final_numbers():
+    from masp_lite.viz import anim2d
+
+    w = make("mpe-5", num_envs=1, seed=0, horizon=12)
+    frames = record(w, make_policy("h-greedy", w), seed=0)
+    anim = animate(frames, goals=True)
+    fig = anim._fig
+    fig.canvas.draw()
+    legend = fig.legends[0].get_window_extent()
+    # the legend's lowest pixel sits above the strip the browser's <video> control bar covers
+    assert legend.y0 >= anim2d.CONTROLS_PX - 1
+    numbers = anim2d.episode_numbers(frames)
+    assert set(numbers) == {"sr", "steps", "cr"} and 0 <= numbers["sr"] <= 1
+    assert 0 <= numbers["steps"] <= frames[-1]["horizon"]
+    with pytest.raises(ValueError, match="at least one frame"):
+        anim2d.episode_numbers([])
+
+
+def test_progress_line_is_one_line_that_updates(capsys):
+    from types import SimpleNamespace
+
+    from masp_lite.viz.progress import ProgressLine
+
+    line = ProgressLine(3, "MASP on mpe-5", every=0)
+    for k in (1, 2, 3):
+        line(SimpleNamespace(iterations=k, env_steps=100 * k))
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.count("\r") == 3       # one line, rewritten in place
+    assert err.rstrip().endswith("MASP on mpe-5: iteration 3/3, 300 environment steps, 0 s, done")
+    with pytest.raises(ValueError, match="positive number"):
+        ProgressLine(0)

@@ -1,4 +1,4 @@
-"""Course machinery: exercise checks, fast mode, learner-notebook generation.
+"""Course machinery: exercise checks, fast mode, learner-notebook generation, the nbgrader course folder.
 
 Authoring recipe (every chapter follows it)
 -------------------------------------------
@@ -20,7 +20,9 @@ it is generated. ``notebooks/README.md`` is the course map.
     ## Section 2: ...
     ## Summary                               (the end: nothing follows it)
 
-Show library code with ``course.show(fn)`` (``inspect.getsource``); never paste it.
+Show library code with ``course.show(fn)`` (``inspect.getsource``); never paste it, and
+never show an exercise's reference before the exercise: show it after the graded check
+("the library's version, to compare with yours"; ``tests/test_exercises.py`` enforces it).
 Scale every budget with ``FAST`` (``episodes = 3 if FAST else 100``): in fast mode a
 chapter must run in about a minute on 2 cores (3 minutes at most).
 
@@ -58,12 +60,27 @@ Build cells with :mod:`masp_lite.course.authoring` (``markdown``, ``code``,
     python -m masp_lite.course.generate              # solutions/ -> notebooks/
     python -m pytest tests/test_course.py            # skeleton + learner notebooks in sync
     python -m pytest tests/test_notebooks.py -k NN   # run chapter NN, both versions, under nbval
+    python -m pytest tests/test_exercises.py         # no reference shown early; call-the-library answers fail
+    python -m pytest tests/test_classroom.py         # nbgrader's cycle on a course folder; the two labs
+
+**Grading** (:mod:`masp_lite.course.classroom`): ``python -m masp_lite.course.classroom init DIR``
+writes an nbgrader course folder from ``solutions/``; nbgrader's own commands then run the
+cycle (README, "Grading with nbgrader").
 
 Ship notebooks without outputs (``jupyter nbconvert --clear-output --inplace``, or build
 them with :func:`masp_lite.course.authoring.notebook`).
 """
-from .checking import RESULTS, Outcome, assert_passed, check, compare
+from .checking import (
+                       RESULTS,
+                       ExerciseNotPassed,
+                       LibraryUnavailable,
+                       Outcome,
+                       assert_passed,
+                       check,
+                       compare,
+                       unavailable,
+)
 from .session import FAST_ENV, fast_mode, setup, show
 
-__all__ = ["check", "assert_passed", "compare", "Outcome", "RESULTS", "fast_mode", "setup", "show",
-           "FAST_ENV"]
+__all__ = ["check", "assert_passed", "compare", "unavailable", "Outcome", "RESULTS", "LibraryUnavailable",
+           "ExerciseNotPassed", "fast_mode", "setup", "show", "FAST_ENV"]

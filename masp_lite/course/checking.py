@@ -5,17 +5,21 @@ cell calls :func:`check`, which
 
 * runs the learner's function and the library's (the *reference*) on the same inputs —
   each call gets its own deep copy, so an in-place edit by one cannot leak into the other;
+* makes the reference (and what it wraps, ``hide=[...]``) unavailable while the learner's
+  function runs: an answer that calls the library's version fails and is told so;
 * compares the results structurally: tensors and arrays by shape, then values with
   ``allclose(rtol, atol)``; tuples/lists by length and item; dicts by keys and value;
   anything else with ``==``;
-* prints exactly one line — ``✓ passed``, ``✗ failed: <first mismatch>`` or
+* prints exactly one line — ``✓ passed``, ``✗ failed: <the mismatch>`` (for arrays: how many
+  entries differ beyond tolerance and the largest difference) or
   ``… not attempted yet (NotImplementedError)`` — and
 * returns the function the rest of the chapter should use: the learner's when it passed,
   the reference otherwise. A wrong or skipped answer never stops the chapter.
 
 Graded cells (nbgrader's ``grade: true`` cells) additionally call :func:`assert_passed`
-(or pass ``strict=True``), which raises ``AssertionError`` unless the check passed, so
-``nbgrader autograde`` awards the cell's points only for a correct function.
+(or pass ``strict=True``), which raises :class:`ExerciseNotPassed` (an ``AssertionError``
+shown as one line, not a traceback) unless the check passed, so ``nbgrader autograde``
+awards the cell's points only for a correct function.
 
 Why hand-written: nbgrader grades by "did the cell raise", and ``numpy.testing`` /
 ``torch.testing`` raise on the first difference with messages about arrays rather than
@@ -23,15 +27,18 @@ about the exercise; the learner needs a one-line verdict and a fallback instead.
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
+import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-__all__ = ["check", "assert_passed", "compare", "Outcome", "RESULTS"]
+__all__ = ["check", "assert_passed", "compare", "unavailable", "Outcome", "RESULTS", "LibraryUnavailable",
+           "ExerciseNotPassed"]
 
 
 @dataclass(frozen=True)
@@ -55,7 +62,10 @@ RESULTS: dict[str, Outcome] = {}
 
 
 def compare(got, expected, rtol: float = 1e-5, atol: float = 1e-6, where: str = "output") -> str | None:
-    """First difference between ``got`` and ``expected`` as a sentence, or ``None``.
+    """The difference between ``got`` and ``expected`` as a sentence, or ``None``.
+
+    Arrays: how many entries differ beyond tolerance and the largest difference (where, got,
+    expected); containers: the first item that differs.
 
     >>> compare((1.0, [2, 3]), (1.0, [2, 4]))
     'output[1][1]: got 3, expected 4'
@@ -117,10 +127,18 @@ def _compare_arrays(got, expected, rtol, atol, where):
     else:
         return f"{where}: got dtype {g.dtype}, expected {e.dtype}"
     if bad.any():
-        idx = tuple(int(i) for i in np.argwhere(bad)[0])
+        count = int(bad.sum())
+        if e.dtype == bool or g.dtype == bool:
+            idx = tuple(int(i) for i in np.argwhere(bad)[0])
+            what = "first"
+        else:  # the largest difference, so a real error is not mistaken for rounding
+            gap = np.abs(g.astype(np.float64) - e.astype(np.float64))
+            gap = np.where(bad, np.nan_to_num(gap, nan=np.inf, posinf=np.inf), -1.0)
+            idx = tuple(int(i) for i in np.unravel_index(int(np.argmax(gap)), gap.shape))
+            what = f"largest difference {float(gap[idx]):.3g}"
         at = f"{where}[{', '.join(map(str, idx))}]" if idx else where
-        return (f"{at}: got {g[idx].item()!r}, expected {e[idx].item()!r} "
-                f"({int(bad.sum())} of {bad.size} entries differ)")
+        return (f"{count} of {bad.size} entries of {where} differ beyond tolerance (rtol={rtol:g}, atol={atol:g}); "
+                f"{what} at {at}: got {g[idx].item()!r}, expected {e[idx].item()!r}")
     return None
 
 
@@ -142,9 +160,125 @@ def _call(fn, case):
     return fn(case)
 
 
+class LibraryUnavailable(RuntimeError):
+    """Raised when the learner's function calls a library function that its check made unavailable."""
+
+
+class ExerciseNotPassed(AssertionError):
+    """A graded cell's failure: shown as its one-line message, without a traceback.
+
+    IPython prints an exception's ``_render_traceback_()`` instead of the traceback, so the
+    graded cell ends in one line; it is still an error output, which nbgrader scores zero.
+    """
+
+    def _render_traceback_(self):
+        return [f"\x1b[0;31m{type(self).__name__}\x1b[0m: {self}"]
+
+
+def _label(obj) -> str:
+    module = getattr(obj, "__module__", None) or ""
+    return f"{module.rsplit('.', 1)[-1]}.{getattr(obj, '__qualname__', repr(obj))}".lstrip(".")
+
+
+def _targets(objects) -> list:
+    """The objects to hide: each one, what it wraps (``__wrapped__``) and the function of a bound method."""
+    out = []
+    for obj in objects:
+        while obj is not None and not any(obj is o for o in out):
+            out.append(obj)
+            obj = getattr(obj, "__func__", None) or getattr(obj, "__wrapped__", None)
+    return out
+
+
+def _functions(learner_fn, depth: int = 2) -> list:
+    """The learner's function and the functions its closure holds (``trips_of(my_fn)`` holds ``my_fn``)."""
+    found, todo = [], [(learner_fn, 0)]
+    while todo:
+        fn, level = todo.pop()
+        fn = getattr(fn, "__wrapped__", fn)
+        if not callable(fn) or any(fn is f for f in found):
+            continue
+        found.append(fn)
+        if level < depth:
+            todo += [(c.cell_contents, level + 1) for c in (getattr(fn, "__closure__", None) or ())
+                     if _filled(c) and callable(c.cell_contents)]
+    return found
+
+
+def _filled(cell) -> bool:
+    try:
+        cell.cell_contents  # noqa: B018 - an empty cell raises ValueError
+    except ValueError:
+        return False
+    return True
+
+
+def _namespaces(learner_fn) -> list[dict]:
+    """Where a learner's function can find a library function: the library's modules, the notebook's globals."""
+    spaces = [vars(m) for key, m in list(sys.modules.items())
+              if m is not None and (key == "masp_lite" or key.startswith("masp_lite.") or key == "__main__")]
+    for fn in _functions(learner_fn):
+        g = getattr(fn, "__globals__", None)
+        if isinstance(g, dict) and not any(g is s for s in spaces):
+            spaces.append(g)
+    return spaces
+
+
+@contextlib.contextmanager
+def unavailable(objects, learner_fn=None):
+    """Make library ``objects`` (functions, classes, methods) raise :class:`LibraryUnavailable` while inside.
+
+    Every module of the library, the learner's globals and the names its function closes over
+    that hold one of them get a stand-in; a method is replaced on its class. Everything is put
+    back on exit.
+    """
+    targets = _targets(objects)
+    swaps = []  # (holder, key, original, is_class_attribute)
+
+    def stand_in(obj):
+        label = _label(obj)
+
+        def unavailable_here(*args, **kwargs):
+            raise LibraryUnavailable(f"your function called the library's {label}, which the check makes "
+                                     "unavailable while it runs your function: write it without it")
+        unavailable_here.__qualname__ = unavailable_here.__name__ = getattr(obj, "__name__", "unavailable")
+        return unavailable_here
+
+    try:
+        for obj in targets:
+            stub = stand_in(obj)
+            for space in _namespaces(learner_fn):
+                for key, value in list(space.items()):
+                    if value is obj:
+                        swaps.append((space, key, value, False))
+                        space[key] = stub
+            for fn in _functions(learner_fn):  # names the learner's function closes over
+                for cell in getattr(fn, "__closure__", None) or ():
+                    if _filled(cell) and cell.cell_contents is obj:
+                        swaps.append((cell, "cell_contents", obj, True))
+                        cell.cell_contents = stub
+            qualname = getattr(obj, "__qualname__", "")
+            module = sys.modules.get(getattr(obj, "__module__", None) or "")
+            if "." in qualname and "<locals>" not in qualname and module is not None:
+                holder = module
+                for part in qualname.split(".")[:-1]:
+                    holder = getattr(holder, part, None)
+                attr = qualname.rsplit(".", 1)[1]
+                if isinstance(holder, type) and holder.__dict__.get(attr) is obj:
+                    swaps.append((holder, attr, obj, True))
+                    setattr(holder, attr, stub)
+        yield
+    finally:
+        for holder, key, value, on_class in reversed(swaps):
+            if on_class:
+                setattr(holder, key, value)
+            else:
+                holder[key] = value
+
+
 def check(learner_fn: Callable, reference_fn: Callable, inputs, name: str, *,
           seeds: Sequence[int] = (0, 1, 2), rtol: float = 1e-5, atol: float = 1e-6,
-          strict: bool = False) -> Callable:
+          strict: bool = False, hide: Sequence = ()) -> Callable:
     """Compare ``learner_fn`` with ``reference_fn``; print the verdict; return the one to use.
 
     ``inputs`` is a list of cases or a function ``seed -> case`` called for each of
@@ -152,22 +286,32 @@ def check(learner_fn: Callable, reference_fn: Callable, inputs, name: str, *,
     or a single argument. Returns ``learner_fn`` if every case matches, else
     ``reference_fn``. With ``strict=True`` a failed or skipped exercise raises
     ``AssertionError`` after printing (for nbgrader's graded cells).
+
+    While ``learner_fn`` runs, ``reference_fn`` and the library objects in ``hide`` (what a
+    notebook-defined reference wraps, e.g. ``hide=[assignment.bottleneck]``) are
+    :func:`unavailable`: an answer that calls the library's version fails, and says so.
     """
     if not callable(learner_fn) or not callable(reference_fn):
         raise ValueError(f"check({name!r}): expected two functions (learner's, reference), got "
                          f"{type(learner_fn).__name__} and {type(reference_fn).__name__}")
     if not isinstance(name, str) or not name:
         raise ValueError(f"check: expected a non-empty exercise name, got {name!r}")
+    if isinstance(hide, (str, bytes)) or not isinstance(hide, Sequence) or not all(callable(h) for h in hide):
+        raise ValueError(f"check({name!r}): hide: expected a list of library functions or classes, got {hide!r}")
     cases = _cases(inputs, seeds)
     outcome = None
     for i, case in enumerate(cases):
         expected = _call(reference_fn, case)  # a failing reference is the chapter's bug: let it raise
         try:
-            got = _call(learner_fn, case)
+            with unavailable([reference_fn, *hide], learner_fn):
+                got = _call(learner_fn, case)
         except NotImplementedError:
             outcome = Outcome(name, "not attempted",
                               f"… {name}: not attempted yet (NotImplementedError): "
                               "the library's version is used from here on")
+            break
+        except LibraryUnavailable as e:
+            outcome = Outcome(name, "failed", f"✗ {name} failed: {e} — the library's version is used from here on")
             break
         except Exception as e:  # noqa: BLE001 - any learner error is a verdict, not a crash
             outcome = Outcome(name, "failed", f"✗ {name} failed on case {i}: raised "
@@ -188,9 +332,9 @@ def check(learner_fn: Callable, reference_fn: Callable, inputs, name: str, *,
 
 
 def assert_passed(name: str) -> None:
-    """Raise ``AssertionError`` unless the latest :func:`check` called ``name`` passed."""
+    """Raise :class:`ExerciseNotPassed` (an ``AssertionError``, shown as one line) unless ``name``'s check passed."""
     outcome = RESULTS.get(name)
     if outcome is None:
-        raise AssertionError(f"{name}: not checked yet; run the check cell above first")
+        raise ExerciseNotPassed(f"{name}: not checked yet; run the check cell above first")
     if not outcome.passed:
-        raise AssertionError(f"{name}: {outcome.status} — this graded cell passes once the check prints ✓")
+        raise ExerciseNotPassed(f"{name}: {outcome.status} — this graded cell passes once the check prints ✓")

@@ -41,7 +41,8 @@ import matplotlib
 import numpy as np
 import torch
 
-__all__ = ["record", "draw_frame", "draw_obs", "frame_from_obs", "current_goals", "legend", "animate", "player",
+__all__ = ["record", "episode_numbers", "CONTROLS_PX", "draw_frame", "draw_obs", "frame_from_obs", "current_goals",
+           "legend", "animate", "player",
            "save", "Scene", "COLOURS", "MIN_AGENT_PT"]
 
 COLOURS = {"agent": "#1f77b4", "idle": "#9ecae1", "dropped": "#d9d9d9", "hit": "#d62728",
@@ -272,7 +273,28 @@ def _magnification(ax, frame: dict) -> float:
     return max(1.0, math.ceil(2 * MIN_AGENT_PT / agent_pt) / 2)  # in steps of 0.5, to read "2×" rather than "1.97×"
 
 
-def animate(frames: list[dict], interval: int = 150, figsize=(6.0, 6.7), *, title: str | None = None,
+#: Height (CSS pixels) a browser's ``<video>`` control bar covers at the bottom of the picture: the
+#: animation leaves that strip empty, so the controls never hide the legend.
+CONTROLS_PX = 56
+
+
+def episode_numbers(frames: list[dict]) -> dict:
+    """SR, Steps and CR of the recorded episode ``frames`` (as :mod:`masp_lite.evaluation` computes them).
+
+    SR: the share of landmarks covered at the end (reached at some point, in a varying team);
+    Steps: the first step at which every landmark was, or the horizon; CR: collisions per step.
+    """
+    if not frames:
+        raise ValueError("frames: expected at least one frame (see record())")
+    last = frames[-1]
+    key = "reached" if last["varying"] else "covered"
+    solved = [f["t"] for f in frames if len(f[key]) == 0 or bool(np.all(f[key]))]
+    return {"sr": float(np.mean(last[key])) if len(last[key]) else 1.0,
+            "steps": int(solved[0]) if solved else int(last["horizon"]),
+            "cr": last["collisions"] / last["t"] if last["t"] else 0.0}
+
+
+def animate(frames: list[dict], interval: int = 150, figsize=(6.0, 7.2), *, title: str | None = None,
             goals: bool = False, trail: int = 6, legend_below: bool = True, magnify: float | None = None):
     """A ``FuncAnimation`` of ``frames`` (``interval`` ms per frame) on the whole map.
 
@@ -280,8 +302,9 @@ def animate(frames: list[dict], interval: int = 150, figsize=(6.0, 6.7), *, titl
     from each agent to its current goal; ``trail`` is the number of earlier frames each
     agent's trail spans (0: none); ``legend_below`` puts the colour key under the map;
     ``magnify`` scales the bodies (default: so that an agent is :data:`MIN_AGENT_PT`
-    points wide). The figure is closed, so notebooks show only the animation
-    (``player(anim)``); ``anim.scene`` is its :class:`Scene`.
+    points wide). With ``legend_below``, the bottom :data:`CONTROLS_PX` pixels stay empty:
+    the video player's control bar covers them, not the legend. The figure is closed, so
+    notebooks show only the animation (``player(anim)``); ``anim.scene`` is its :class:`Scene`.
     """
     import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation
@@ -291,13 +314,14 @@ def animate(frames: list[dict], interval: int = 150, figsize=(6.0, 6.7), *, titl
     if not isinstance(trail, int) or isinstance(trail, bool) or trail < 0:
         raise ValueError(f"trail: expected a number of frames >= 0, got {trail!r}")
     fig = plt.figure(figsize=figsize)
-    bottom = 0.13 if legend_below else 0.04
+    controls = CONTROLS_PX / (fig.get_figheight() * fig.dpi) if legend_below else 0.0  # the player's bar
+    bottom = (0.12 + controls) if legend_below else 0.04
     ax = fig.add_axes((0.03, bottom, 0.94, 0.925 - bottom))
     scene = Scene(ax, frames[0], goals=goals, title=title,
                   magnify=_magnification(ax, frames[0]) if magnify is None else magnify)
     if legend_below:
         legend(fig, varying=frames[0]["varying"], goals=goals, trails=trail > 0, loc="lower center", ncol=4,
-               bbox_to_anchor=(0.5, 0.0), columnspacing=1.2, handletextpad=0.4)
+               bbox_to_anchor=(0.5, controls), columnspacing=1.2, handletextpad=0.4)
     positions = np.stack([f["agent_pos"] for f in frames])
 
     def show(i):

@@ -5,6 +5,8 @@ which landmarks are reached, every ``stride`` steps), then drawn as a meshcat sc
 
 * each drone: a hub, four arms and four rotor discs (red: spin −1, blue: spin +1), a
   colour of its own on the hub; its whole path as a thin line of that colour (the trail);
+  drawn :func:`drone_scale` times its size on large maps (2x on drone-20's 16 m map), so
+  that 20 drones read from the default camera, which sits close enough to see the map whole;
 * landmarks: a ball of the scenario's radius inside a translucent green marker large
   enough to see from the default camera (:func:`marker_radius`: a 0.05 m ball on a 16 m
   map is a pixel), on a thin stem down to the floor so its height reads; a bright halo
@@ -14,7 +16,9 @@ which landmarks are reached, every ``stride`` steps), then drawn as a meshcat sc
 * the floor: a grey tile of the map's size.
 
 The motion is a meshcat ``Animation`` (position, quaternion and scale tracks), so the
-viewer plays it by itself (its "Animations" panel has play / pause / speed).
+viewer plays it by itself (its "Animations" panel has play / pause / speed). On the
+standalone page the controls open with the Scene tree folded and the Animations panel open,
+and the panel scrolls, so play / pause stay in reach in a 400-px notebook cell.
 
 Two ways to show it:
 
@@ -44,8 +48,8 @@ import warnings
 
 import numpy as np
 
-__all__ = ["record_episode", "build_scene", "episode_html", "play_to_html", "notebook_html", "marker_radius",
-           "RecordingWindow", "LiveViewer"]
+__all__ = ["record_episode", "build_scene", "episode_html", "key_html", "play_to_html", "notebook_html",
+           "marker_radius", "drone_scale", "RecordingWindow", "LiveViewer"]
 
 _FPS_STEPS = 2  # env steps per animation frame by default (0.032 s of flight)
 LANDMARK, REACHED, CRASH = 0x228833, 0x66ee44, 0xee2222  # the scene's colours, named in the on-screen key
@@ -59,6 +63,16 @@ def marker_radius(scenario) -> float:
     least 0.15 m (and never smaller than the landmark itself).
     """
     return max(0.15, scenario.world_size / 80, 2 * scenario.landmark_radius)
+
+
+def drone_scale(scenario) -> float:
+    """How much larger than life the drones are drawn: 1 on small maps, 2 on drone-20's 16 m map.
+
+    A drone is about 0.5 m across; seen whole from the default camera, a 16 m map leaves it a
+    few pixels, so the model grows with the map (1/8 of the side per metre of drone, in steps
+    of 0.5). The key says so whenever it is more than 1.
+    """
+    return max(1.0, round(float(scenario.world_size) / 8 * 2) / 2)
 
 
 def _meshcat():
@@ -130,7 +144,7 @@ def build_scene(vis, episode: dict) -> None:
     mark = marker_radius(sc)
     # camera behind the map's -y edge, looking at the centre; the "rotated" frame is y-up
     vis["/Cameras/default"].set_transform(np.eye(4))
-    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 0.6 * ws, 0.8 * ws])
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 0.45 * ws, 0.6 * ws])
     vis["/Axes"].set_property("visible", False)
     vis["floor"].set_object(g.Box([ws, ws, 0.01]), g.MeshLambertMaterial(color=0xdddddd))
     vis["floor"].set_transform(_pose([0, 0, -0.005]))
@@ -166,14 +180,14 @@ def build_scene(vis, episode: dict) -> None:
         vis["crashes"][str(i)].set_transform(_pose(np.nan_to_num(episode["crash_pos"][i], nan=0.0)))
     fps = 1.0 / episode["dt"]
     anim = mc.animation.Animation(default_framerate=fps)
-    tiny, one = [1e-4] * 3, [1.0] * 3
+    tiny, one, big = [1e-4] * 3, [1.0] * 3, [drone_scale(sc)] * 3
     for f in range(T):
         with anim.at_frame(vis, f) as frame:
             for i in range(N):
                 alive = bool(episode["alive"][f, i])
                 drone = frame["drones"][str(i)]
                 drone.set_transform(_pose(pos[f, i], quat[f, i]))
-                drone.set_property("scale", "vector3", one if alive else tiny)
+                drone.set_property("scale", "vector3", big if alive else tiny)
                 frame["landmarks"][str(i)]["halo"].set_property(
                     "scale", "vector3", one if episode["reached"][f, i] else tiny)
                 gone = episode["crashed"][i] and not alive
@@ -219,43 +233,63 @@ class RecordingWindow:
         root = os.path.join(os.path.dirname(mc.__file__), "viewer", "dist", "main.min.js")
         with open(root, encoding="utf-8") as f:
             viewer_js = f.read()
-        commands = "".join(
-            'fetch("data:application/octet-binary;base64,{}").then(r => r.arrayBuffer())'
-            ".then(b => viewer.handle_command_bytearray(new Uint8Array(b)));\n".format(
+        commands = "var sent = [];\n" + "".join(
+            'sent.push(fetch("data:application/octet-binary;base64,{}").then(r => r.arrayBuffer())'
+            ".then(b => viewer.handle_command_bytearray(new Uint8Array(b))));\n".format(
                 base64.b64encode(c).decode("ascii")) for c in self.commands)
+        # meshcat's controls list the Scene tree first, so in a short cell the Animations panel
+        # (play / pause / speed) sat below the bottom edge: fold Scene, open Animations, and let
+        # the panel scroll inside the page
+        controls = ("Promise.all(sent).then(function () { var g = viewer.gui, f = g && g.__folders;"
+                    " if (f && f.Scene) f.Scene.close(); if (f && f.Animations) f.Animations.open(); });\n")
         return (f"<!DOCTYPE html>\n<html><head><meta charset=utf-8><title>{html_lib.escape(title)}</title>"
                 "<style>body{margin:0}#meshcat-pane{width:100vw;height:100vh;overflow:hidden}"
+                ".dg.main{max-height:100vh;overflow-y:auto}"
                 "#masp-key{position:absolute;top:8px;left:8px;z-index:10;background:rgba(255,255,255,.85);"
                 "font:12px/1.45 sans-serif;padding:6px 9px;border-radius:4px;pointer-events:none}"
                 "#masp-key i{display:inline-block;width:10px;height:10px;border-radius:50%;margin-right:5px}"
                 "</style></head>"
                 f"<body><div id=\"meshcat-pane\"></div>{overlay}<script>{viewer_js}</script><script>"
                 "var viewer = new MeshCat.Viewer(document.getElementById('meshcat-pane'));\n"
-                f"{commands}</script></body></html>")
+                f"{commands}{controls}</script></body></html>")
 
 
-def _key(episode: dict) -> str:
-    """The on-screen key of a recorded episode: method, scenario, outcome, and what each colour means."""
+def _key(episode: dict, floating: bool = True) -> str:
+    """The key of a recorded episode: method, scenario, outcome, and what each colour means.
+
+    ``floating``: over the scene's top-left corner (the standalone page); otherwise a plain
+    block to put under the view (the playground, whose panes are too narrow for an overlay).
+    """
     sc, esc = episode["scenario"], html_lib.escape
     swatch = lambda colour, text: f'<i style="background:#{colour:06x}"></i>{text}<br>'  # noqa: E731
     covered = f"{int(np.sum(episode['covered']))}/{len(episode['covered'])} landmarks covered at the end"
-    return (f'<div id="masp-key"><b>{esc(str(episode.get("method", "")))}</b> on {esc(sc.name)}: {covered}<br>'
+    opening = ('<div id="masp-key">' if floating else
+               '<div class="masp-key" style="font:12px/1.45 sans-serif">'
+               '<style>.masp-key i{display:inline-block;width:10px;height:10px;border-radius:50%;'
+               'margin-right:5px}</style>')
+    return (f'{opening}<b>{esc(str(episode.get("method", "")))}</b> on {esc(sc.name)}: {covered}<br>'
             + swatch(LANDMARK, "landmark (translucent marker, stem to the floor)")
             + swatch(REACHED, "halo: landmark reached")
             + swatch(CRASH, "crash")
             + swatch(SPIN_MINUS, "rotor spinning −1")
             + swatch(SPIN_PLUS, "rotor spinning +1")
             + "hub and trail: one colour per drone<br>"
+            + (f"drones drawn {drone_scale(sc):g}× their size<br>" if drone_scale(sc) > 1 else "")
             + "drag to rotate, scroll to zoom; replay: Open Controls → Animations</div>")
 
 
-def episode_html(episode: dict) -> str:
-    """The standalone page (str) of a recorded episode, with its on-screen key."""
+def key_html(episode: dict) -> str:
+    """The episode's key as a plain HTML block, to show beside or under a view without its overlay."""
+    return _key(episode, floating=False)
+
+
+def episode_html(episode: dict, key: bool = True) -> str:
+    """The standalone page (str) of a recorded episode, with its on-screen key unless ``key=False``."""
     mc = _meshcat()
     window = RecordingWindow()
     build_scene(mc.Visualizer(window=window), episode)
     title = f"masp-lite: {episode.get('method', '')} on {episode['scenario'].name}"
-    return window.static_html(overlay=_key(episode), title=title)
+    return window.static_html(overlay=_key(episode) if key else "", title=title)
 
 
 def play_to_html(method, scenario, out, seed: int = 0, **overrides) -> str:

@@ -7,7 +7,8 @@ by :func:`same_layout`), and a step slider walks through them together:
 * particle scenarios (``mpe-*``): the two 2-D views of :mod:`.anim2d` (its :class:`~.anim2d.Scene`,
   goal lines and short trails) at the slider's step;
 * drone scenarios: the two standalone meshcat pages of :mod:`.meshcat3d`, which play their
-  own 3-D animation (meshcat's "Animations" panel); the slider moves the metrics only.
+  own 3-D animation (meshcat's "Animations" panel), each with its key under it; the slider
+  moves the metrics only, and says so beside it (:data:`SLIDER_NOTE_3D`).
 
 Under the views, one line per method gives SR, Steps and CR *so far*: :func:`metrics_at` runs
 the course's own functions (:mod:`masp_lite.evaluation.metrics`) on the episode cut after
@@ -48,7 +49,7 @@ from ..policies import build_policy, get_factory, method_names
 from ..policies import method_options as options_of
 
 __all__ = ["Episode", "Playground", "rollout_pair", "metrics_at", "team_sizes", "same_layout", "static", "show",
-           "TRAIL"]
+           "TRAIL", "SLIDER_NOTE_3D"]
 
 #: Earlier frames each agent's trail spans in the 2-D views.
 TRAIL = 6
@@ -224,11 +225,18 @@ def _title(episodes) -> str:
 
 
 def _iframes(episodes, height: int = 420) -> str:
-    from .meshcat3d import notebook_html
+    """The two meshcat pages side by side, each with its key under it (an overlay would cover a narrow pane)."""
+    from .meshcat3d import episode_html, key_html, notebook_html
 
-    cells = "".join(f'<div style="flex:1;min-width:320px">{notebook_html(ep.recording, height).data}</div>'
-                    for ep in episodes)
+    cells = "".join(f'<div style="flex:1;min-width:320px">'
+                    f"{notebook_html(episode_html(ep.recording, key=False), height).data}"
+                    f"{key_html(ep.recording)}</div>" for ep in episodes)
     return f'<div style="display:flex;gap:8px">{cells}</div>'
+
+
+#: What the step slider does with drone scenarios, said beside it.
+SLIDER_NOTE_3D = ("the slider moves the metrics below; the 3-D views play by themselves "
+                  "(Open Controls → Animations to pause or replay)")
 
 
 def _error(e: Exception) -> str:
@@ -292,12 +300,13 @@ class Playground:
         W.jslink((self.play, "value"), (self.step, "value"))
         self.view, self.view3d = W.Image(format="png"), W.HTML()
         self.table, self.status = W.HTML(), W.HTML()
+        self.slider_note = W.HTML()  # drones: what the slider moves (the metrics, not the 3-D views)
         self.scenario.observe(lambda change: self._on_scenario(change["new"]), names="value")
         self.step.observe(lambda change: self._show(change["new"]), names="value")
         self.run_button.on_click(self.run)
         self.box = W.VBox([W.HBox([self.scenario, self.team_size, self.seed]),
                            W.HBox([self.method_a, self.method_b, self.run_button]), self.status,
-                           W.HBox([self.play, self.step]), self.view, self.view3d, self.table])
+                           W.HBox([self.play, self.step, self.slider_note]), self.view, self.view3d, self.table])
         if run:
             self.run()
 
@@ -328,6 +337,8 @@ class Playground:
         self.view.layout.display = None if particle else "none"
         self.view3d.layout.display = "none" if particle else None
         self.view3d.value = "" if particle else _iframes(episodes)
+        self.step.description = "step" if particle else "metrics at"
+        self.slider_note.value = "" if particle else f"<i>{html.escape(SLIDER_NOTE_3D)}</i>"
         self.episodes = episodes
         self._show(0)
         self.status.value = f"{html.escape(_title(episodes))} — recorded in {time.perf_counter() - started:.1f} s"

@@ -15,6 +15,9 @@ cells in the other rows). These functions are what chapters 06 and 10 use to loo
 * :func:`kept_curves` and :func:`plot_seed_bands` — the curves of a recipe's kept training
   seeds (``results/training/FOLDER/``), and their mean and band over seeds (chapter 10's
   ablation figure).
+* :class:`ProgressLine` — a training run's progress in a notebook as one line that updates
+  in place (``train(..., progress=False, on_iteration=ProgressLine(updates))``): the saved
+  notebook keeps that one line, where a text progress bar saves every redraw.
 
 Why columns of floats: a curve is plotted and compared as an array, and NaN keeps the
 evaluation columns aligned with the iterations (``np.isnan`` finds the evaluated rows).
@@ -23,13 +26,80 @@ from __future__ import annotations
 
 import csv
 import json
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
 from ..weights import KEPT_DIR, REPO_ROOT, base_scenario, read_manifest
 
-__all__ = ["read_progress", "last_evaluation", "training_history", "plot_progress", "kept_curves", "plot_seed_bands"]
+__all__ = ["read_progress", "last_evaluation", "training_history", "plot_progress", "kept_curves", "plot_seed_bands",
+           "ProgressLine"]
+
+
+class ProgressLine:
+    """``on_iteration`` for :func:`masp_lite.training.train`: one progress line, updated in place.
+
+    In a notebook the line is a display that each iteration replaces, so the saved output is
+    that single line; elsewhere it is rewritten with a carriage return. ``every`` limits how
+    often it redraws.
+
+    >>> line = ProgressLine(150, "MASP on mpe-5")   # doctest: +SKIP
+    >>> train("mpe-5", cfg, out, progress=False, on_iteration=line)   # doctest: +SKIP
+    """
+
+    def __init__(self, total: int, label: str = "training", every: float = 1.0):
+        if not isinstance(total, int) or isinstance(total, bool) or total < 1:
+            raise ValueError(f"ProgressLine: total: expected a positive number of iterations, got {total!r}")
+        self.total, self.label, self.every = total, label, float(every)
+        self.start = self.shown = None
+        self.handle = None
+        self.first = None
+
+    def text(self, iterations: int, env_steps: int | None = None) -> str:
+        """The line for ``iterations`` done (elapsed time and an estimate of what is left)."""
+        now = time.monotonic()
+        if self.start is None:
+            self.start, self.first = now, iterations - 1
+        elapsed = now - self.start
+        done = max(iterations - self.first, 1)
+        left = elapsed / done * max(self.total - iterations, 0)
+        steps = f", {env_steps:,} environment steps" if env_steps is not None else ""
+        return (f"{self.label}: iteration {iterations}/{self.total}{steps}, {elapsed:.0f} s"
+                + (f", about {left:.0f} s left" if iterations < self.total else ", done"))
+
+    def __call__(self, trainer) -> None:
+        iterations = int(trainer.iterations)
+        line = self.text(iterations, getattr(trainer, "env_steps", None))
+        now = time.monotonic()
+        if self.shown is not None and now - self.shown < self.every and iterations < self.total:
+            return
+        self.shown = now
+        try:
+            from IPython import get_ipython
+            from IPython.display import display
+            in_kernel = get_ipython() is not None and "IPKernelApp" in get_ipython().config
+        except ImportError:  # pragma: no cover - IPython ships with the course requirements
+            in_kernel = False
+        if in_kernel:
+            if self.handle is None:
+                self.handle = display(_Line(line), display_id=True)
+            else:
+                self.handle.update(_Line(line))
+        else:
+            end = "\n" if iterations >= self.total else ""
+            print("\r" + line, end=end, file=sys.stderr, flush=True)
+
+
+class _Line:
+    """A line of text for IPython's display (plain text; no markup)."""
+
+    def __init__(self, text: str):
+        self.text = text
+
+    def __repr__(self) -> str:
+        return self.text
 
 
 

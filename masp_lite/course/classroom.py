@@ -1,0 +1,159 @@
+"""A standard nbgrader course folder built from ``solutions/``, for an instructor's grading cycle.
+
+The repository keeps each version of the course in one flat folder (instructor notebooks in
+``solutions/``, learner notebooks in ``notebooks/``); nbgrader's commands want one sub-folder
+per assignment instead. ::
+
+    .venv/bin/python -m masp_lite.course.classroom init classroom
+
+writes that layout — one assignment per chapter, named after its notebook — and nothing else::
+
+    classroom/
+        nbgrader_config.py                              the course's configuration (below)
+        gradebook.db                                    nbgrader's database, created empty
+        source/03_graph_encoders/03_graph_encoders.ipynb   (a copy of solutions/03_graph_encoders.ipynb)
+        ...
+
+after which nbgrader's own commands run the cycle from inside ``classroom/``
+(``generate_assignment``, ``release_assignment``/``collect`` or submissions placed in
+``submitted/<student>/<chapter>/``, ``autograde``, ``generate_feedback``, ``export``, the
+formgrader); the README's instructor section gives them in order.
+
+The folder's ``nbgrader_config.py``
+
+* puts the Python environment's ``bin/`` folder first on ``PATH``: nbgrader runs ``alembic``
+  as a command when it creates its database, which fails (``FileNotFoundError: 'alembic'``)
+  when ``.venv/bin/nbgrader`` is called without activating the environment;
+* adds the course's :class:`~masp_lite.course.generate.TagGradedCells` to
+  ``generate_assignment``, so the release equals ``notebooks/`` (graded cells tagged
+  ``raises-exception``: "Run All" goes on past an unsolved exercise);
+* grades in fast mode (``MASP_LITE_FAST=1``, the budgets the tests use; a graded cell depends
+  only on its exercise) with no per-cell time limit (nbgrader's default of 30 s would cut a
+  chapter's training cells short);
+* keeps nbgrader's exchange in ``classroom/exchange`` instead of ``/srv/nbgrader/exchange``,
+  so ``release_assignment``, ``fetch_assignment``, ``submit`` and ``collect`` work on one
+  machine without administrator rights.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+from pathlib import Path
+
+from .generate import ROOT
+
+__all__ = ["init", "chapters", "CONFIG"]
+
+#: The course folder's ``nbgrader_config.py``.
+CONFIG = '''\
+"""nbgrader's configuration for this course folder (written by python -m masp_lite.course.classroom init).
+
+Run nbgrader's commands from this folder, e.g. ``../.venv/bin/nbgrader autograde 03_graph_encoders``.
+"""
+import os
+import sys
+
+from nbgrader.converters import GenerateAssignment
+
+from masp_lite.course.generate import TagGradedCells
+
+c = get_config()  # noqa: F821  (traitlets defines get_config for its configuration files)
+
+# nbgrader runs `alembic` as a command when it creates gradebook.db: find it beside this Python
+# even when the environment is not activated.
+os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")
+# chapters are graded with the tests' small budgets; a graded cell depends only on its exercise
+os.environ.setdefault("MASP_LITE_FAST", "1")
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+c.CourseDirectory.root = os.path.dirname(os.path.abspath(__file__))
+c.CourseDirectory.course_id = {course_id!r}
+c.Exchange.root = os.path.join(c.CourseDirectory.root, "exchange")
+# the release equals the repository's notebooks/: graded cells tagged raises-exception
+c.GenerateAssignment.preprocessors = GenerateAssignment.class_traits()["preprocessors"].default() + [TagGradedCells]
+# chapters train and evaluate: no per-cell time limit (nbgrader's default is 30 s)
+c.Execute.timeout = None
+'''
+
+
+def chapters(solutions: str | Path | None = None) -> list[str]:
+    """The chapter names (notebook stems, e.g. ``"03_graph_encoders"``) in ``solutions/``."""
+    solutions = Path(solutions) if solutions is not None else ROOT / "solutions"
+    return sorted(p.stem for p in solutions.glob("*.ipynb"))
+
+
+def _create_gradebook(folder: Path, course_id: str) -> Path:
+    """Create nbgrader's empty ``gradebook.db`` (its ``alembic`` subprocess found beside this Python)."""
+    from nbgrader.api import Gradebook
+
+    db = folder / "gradebook.db"
+    old = os.environ.get("PATH", "")
+    os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + old
+    try:
+        with Gradebook(f"sqlite:///{db}", course_id=course_id):
+            pass
+    finally:
+        os.environ["PATH"] = old
+    return db
+
+
+def init(folder: str | Path, names: list[str] | None = None, *, solutions: str | Path | None = None,
+         course_id: str = "masp-lite", force: bool = False) -> list[Path]:
+    """Write an nbgrader course folder at ``folder`` from the instructor notebooks; return the sources.
+
+    ``names`` picks chapters by notebook stem (``"03_graph_encoders"``) or number (``"03"``);
+    all chapters by default. An existing source notebook is replaced only with ``force``.
+    """
+    solutions = Path(solutions) if solutions is not None else ROOT / "solutions"
+    available = chapters(solutions)
+    if not available:
+        raise ValueError(f"init: expected instructor notebooks in {str(solutions)!r}, found none")
+    picked = available if not names else []
+    for name in names or []:
+        match = [c for c in available if c == name or c.split("_", 1)[0] == name]
+        if len(match) != 1:
+            raise ValueError(f"init: unknown chapter {name!r}; expected one of {available}")
+        picked.append(match[0])
+    folder = Path(folder).resolve()
+    written = []
+    for name in picked:
+        dst = folder / "source" / name / f"{name}.ipynb"
+        if dst.exists() and not force:
+            raise ValueError(f"init: {dst} exists (pass --force to replace it)")
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(solutions / f"{name}.ipynb", dst)
+        written.append(dst)
+    (folder / "nbgrader_config.py").write_text(CONFIG.format(course_id=course_id), encoding="utf-8")
+    if not (folder / "gradebook.db").exists():
+        _create_gradebook(folder, course_id)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m masp_lite.course.classroom",
+                                     description="build an nbgrader course folder from solutions/")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("init", help="write DIR/source/<chapter>/<chapter>.ipynb and DIR/nbgrader_config.py")
+    p.add_argument("folder", help="the course folder to write (e.g. classroom)")
+    p.add_argument("chapters", nargs="*", help="chapters to include, by name or number (default: all)")
+    p.add_argument("--force", action="store_true", help="replace source notebooks that exist")
+    p.add_argument("--course-id", default="masp-lite", help="nbgrader's course id (default: masp-lite)")
+    args = parser.parse_args(argv)
+    try:
+        written = init(args.folder, args.chapters, course_id=args.course_id, force=args.force)
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    folder = Path(args.folder)
+    for path in written:
+        print(f"wrote {path}")
+    print(f"wrote {folder / 'nbgrader_config.py'}")
+    nbgrader = os.path.relpath(Path(sys.executable).parent / "nbgrader", folder.resolve())
+    print(f"next: cd {folder} && {nbgrader} generate_assignment {written[0].parent.name}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
