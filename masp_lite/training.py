@@ -44,9 +44,10 @@ import torch
 
 from .algos.drone_trainer import DroneMASPTrainer
 from .algos.masp_trainer import MASPTrainer
-from .config import TrainConfig, field_types, parse_sets
+from .config import TrainConfig
 from .envs import OVERRIDES, Scenario, get_scenario, make
 from .evaluation import collision_rate, rollout, steps, success_rate
+from .parsing import field_types, parse_sets
 from .policies.drone_masp import DRONE_METHODS, DroneMASPPolicy
 from .policies.masp import METHOD_SETTINGS, VARIANTS, MASPPolicy
 from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256, trained_world
@@ -120,7 +121,7 @@ def _drone_method_config(method, sets, scenario) -> tuple[str, TrainConfig, dict
 
 
 def parse_config(sets) -> tuple[TrainConfig, dict]:
-    """``KEY=VALUE`` strings -> (TrainConfig, scenario overrides), by :func:`masp_lite.config.parse_sets`."""
+    """``KEY=VALUE`` strings -> (TrainConfig, scenario overrides), by :func:`masp_lite.parsing.parse_sets`."""
     types = field_types(Scenario)
     got = parse_sets(sets, {"training setting": field_types(TrainConfig),
                             "scenario override": {k: types[k] for k in OVERRIDES}})

@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 import torch
 
-from masp_lite.config import parse_value
 from masp_lite.envs import make
 from masp_lite.evaluation import (
     CONTACT_KINDS,
@@ -18,6 +17,7 @@ from masp_lite.evaluation import (
     steps,
     success_rate,
 )
+from masp_lite.parsing import parse_value
 from masp_lite.policies.reference import RandomPolicy
 
 

@@ -12,6 +12,8 @@ holds what both levels use, each piece a small function:
 * :class:`RolloutStorage` — named per-step tensors stacked into (T, B, ...) and cut into
   minibatches of (step, world) rows (a row keeps all agents of a world together, since
   the graph networks need the whole team);
+* :func:`sample` (categorical, the particle executor and MPE's 5 actions) and
+  :func:`gaussian_log_prob` / :func:`gaussian_entropy` (the drone executor's Gaussian);
 * :func:`ppo_update` — epochs x minibatches of the combined loss, with gradient clipping.
 
 The settings (:class:`masp_lite.config.PPOConfig`) default to MAGE-X's MAPPO settings
@@ -22,14 +24,15 @@ graphs whose rows must keep a world's agents together.
 """
 from __future__ import annotations
 
+import math
+
 import torch
 from torch import nn
 
 from ..config import PPOConfig
-from ..nets.drones import gaussian_entropy, gaussian_log_prob
 
-__all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage",
-           "ppo_update"]
+__all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage", "sample", "gaussian_log_prob",
+           "gaussian_entropy", "ppo_update"]
 
 
 def gae(rewards: torch.Tensor, values: torch.Tensor, next_value: torch.Tensor, gamma: float, lam: float,
@@ -144,6 +147,25 @@ class RolloutStorage:
             yield {k: v[idx] for k, v in flat.items()}
 
 
+def sample(logits: torch.Tensor, generator: torch.Generator):
+    """Categorical samples and their log-probabilities via the Gumbel-max trick (seeded)."""
+    u = torch.rand(logits.shape, generator=generator, dtype=logits.dtype).clamp(1e-10, 1.0)
+    a = (logits - torch.log(-torch.log(u))).argmax(-1)
+    logp = torch.gather(torch.log_softmax(logits, -1), -1, a.unsqueeze(-1)).squeeze(-1)
+    return a, logp
+
+
+def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+    """Log-density (...) of ``actions`` (..., A) under independent normals N(mean, exp(log_std)²), summed over A."""
+    z = (actions - mean) * torch.exp(-log_std)
+    return (-0.5 * z * z - log_std - 0.5 * math.log(2 * math.pi)).sum(-1)
+
+
+def gaussian_entropy(log_std: torch.Tensor, shape) -> torch.Tensor:
+    """Entropy (``shape``) of independent normals with per-dimension ``log_std`` (A,), summed over A."""
+    return (0.5 + 0.5 * math.log(2 * math.pi) + log_std).sum(-1).expand(shape)
+
+
 def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: PPOConfig,
                value_norm: ValueNorm, generator: torch.Generator, epochs: int | None = None,
                distribution: str = "categorical") -> dict[str, float]:
@@ -153,7 +175,7 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
     outputs at collection), ``returns`` (raw), ``advantages`` and ``mask`` (alive agents).
     ``evaluate(minibatch) -> (logits, values)`` recomputes the networks on a minibatch;
     with ``distribution="gaussian"`` (the drone executor) it returns ``((mean, log_std), values)``
-    and ``actions`` are the unclipped samples (:func:`~masp_lite.nets.drones.gaussian_log_prob`).
+    and ``actions`` are the unclipped samples (:func:`gaussian_log_prob`).
     Advantages are standardised over the alive agents of the whole rollout. ``epochs``
     overrides ``cfg.ppo_epochs``.
     """

@@ -3,7 +3,7 @@
 Runs :func:`masp_lite.evaluation.evaluate` and prints the record as the paper's table.
 ``--set`` takes scenario overrides (``num_agents=100``, ``team_after=none``) and the
 method's options (``power=2``), each value parsed by the type of what it sets
-(:func:`masp_lite.config.parse_sets`, the parser every command uses). The table shows them
+(:func:`masp_lite.parsing.parse_sets`, the parser every command uses). The table shows them
 beside the method and scenario. ``--json PATH`` is checked to be writable before the run, so
 a bad path fails at once rather than after the whole evaluation.
 """
@@ -13,9 +13,9 @@ import json
 import os
 from pathlib import Path
 
-from ..config import field_types, parse_sets
 from ..envs import OVERRIDES, Scenario
 from ..evaluation import MAX_ENVS, evaluate, format_table
+from ..parsing import field_types, parse_sets
 from ..policies import get_factory, method_options, option_types
 
 __all__ = ["add_arguments", "run", "split_sets", "override_types", "check_writable", "EXAMPLES"]

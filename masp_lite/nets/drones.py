@@ -18,12 +18,12 @@ The design is the particle world's (:mod:`masp_lite.nets.masp`), node for node:
     head's output, whose last layer starts near 0, so an untrained executor hovers;
   - ``velocity`` (the variant ``masp-velocity``): a 3-D velocity set-point in units of
     ``DRONE_SPEED``, flown by the geometric controller
-    (:func:`masp_lite.algos.drone_trainer.motor_commands`).
+    (:func:`masp_lite.planners.geometric.motor_commands`).
 
   A sample is clipped to [−1, 1] before it reaches the world or the controller; the policy
   is trained on the log-probability of the unclipped sample (the clip belongs to the world),
   which keeps the log-probability exact and the entropy in closed form
-  (:func:`gaussian_log_prob`). The deterministic action is the clipped mean.
+  (:func:`masp_lite.algos.mappo.gaussian_log_prob`). The deterministic action is the clipped mean.
 * **Critics**: :class:`~masp_lite.nets.masp.GoalMatcherCritic` on the 3-D nodes and
   :class:`~masp_lite.nets.masp.ExecutorCritic` on the executor's features, as in MPE.
 
@@ -33,13 +33,12 @@ weights fine-tune on drone-20, drone-20 weights fly drone-20to10).
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import torch
 from torch import nn
 
 from ..config import NetConfig
-from ..envs.drone_model import HOVER_COMMAND, quat_to_matrix
+from ..envs.drone_model import DRONE_SPEED, HOVER_COMMAND, quat_to_matrix
 from ..envs.drones import FLIGHT_HEIGHT
 from .encoders import mlp
 from .fusion import GroupInformationFusion, group_division
@@ -53,11 +52,8 @@ from .masp import (
     pair_features,
 )
 
-__all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "gaussian_log_prob", "gaussian_entropy",
-           "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
+__all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
 
-DRONE_SPEED = 4.0
-"""m/s: velocities are divided by it, and a ``velocity`` action of 1 asks for it."""
 DRONE_SENSE = 2.0
 """Metres at which neighbour vectors are clipped."""
 ANGVEL_SCALE = 10.0
@@ -77,17 +73,6 @@ def drone_state_features(obs: dict) -> torch.Tensor:
     R = quat_to_matrix(q / q.norm(dim=-1, keepdim=True).clamp(min=1e-9))
     z = (obs["agent_pos"][..., 2:] - FLIGHT_HEIGHT) / FLIGHT_HEIGHT
     return torch.cat([R.flatten(-2), obs["agent_angvel"] / ANGVEL_SCALE, z, obs["throttle"]], dim=-1).to(q.dtype)
-
-
-def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-    """Log-density (...) of ``actions`` (..., A) under independent normals N(mean, exp(log_std)²), summed over A."""
-    z = (actions - mean) * torch.exp(-log_std)
-    return (-0.5 * z * z - log_std - 0.5 * math.log(2 * math.pi)).sum(-1)
-
-
-def gaussian_entropy(log_std: torch.Tensor, shape) -> torch.Tensor:
-    """Entropy (``shape``) of independent normals with per-dimension ``log_std`` (A,), summed over A."""
-    return (0.5 + 0.5 * math.log(2 * math.pi) + log_std).sum(-1).expand(shape)
 
 
 class DroneExecutor(nn.Module):

@@ -16,8 +16,8 @@ from pathlib import Path
 import torch
 
 from ..algos.assignment import hungarian_goals
-from ..algos.drone_trainer import motor_commands, velocity_controller
 from ..nets.decoding import joint_argmax
+from ..planners.geometric import motor_commands, velocity_controller
 from ..weights import KEPT_DIR, base_scenario, load_weights
 
 __all__ = ["DroneMASPPolicy", "DroneMASPVelocity", "DRONE_METHODS", "kept_checkpoint"]

@@ -11,7 +11,7 @@ agent to its goal. All three share :class:`HungarianPlanner`:
   agent count at each global step" (:func:`~masp_lite.algos.assignment.hungarian_random_subset`);
   ``team_protocol="sequential"`` takes the paper's other account instead (assign once
   when the team shrinks, hand on leftover goals as agents reach theirs;
-  :class:`~masp_lite.algos.assignment.TeamAssignment`).
+  :class:`~masp_lite.algos.team.TeamAssignment`).
   An agent left without a goal (more agents than unreached landmarks) holds its position.
 * **Planning**, in the subclass's :meth:`~HungarianPlanner.desired_velocity`: ORCA every
   environment step; RRT* and Voronoi paths every global step (RRT* also when blocked),
@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..algos.assignment import TeamAssignment
+from ..algos.team import TeamAssignment
 from ..planners.controllers import GLOBAL_STEP, MAX_SPEED, arrive_velocity, pad_paths, track_path, velocity_to_action
 from ..planners.orca import orca_velocities
 from ..planners.rrt_star import plan_rrt_star, segments_blocked

@@ -22,7 +22,8 @@ import math
 
 import torch
 
-from ..algos.assignment import TEAM_PROTOCOLS, TeamAssignment, check_power
+from ..algos.assignment import check_power
+from ..algos.team import TEAM_PROTOCOLS, TeamAssignment
 from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
 from ..planners.controllers import velocity_to_action  # the controller every planner shares
 
@@ -99,7 +100,7 @@ class HungarianGreedy:
     get no goal). ``power`` is the assignment's cost, ``distance ** power`` (1: total
     distance, the "(H)" baselines' and the default; 2: total squared distance, shorter
     longest trips, see :func:`~masp_lite.algos.assignment.hungarian`). ``cost="bottleneck"``
-    takes the min–max assignment instead (:func:`~masp_lite.algos.assignment.bottleneck`:
+    takes the min–max assignment instead (:func:`~masp_lite.algos.team.bottleneck`:
     the longest trip as short as possible, then the least total). ``team_protocol``: how a
     shrunk team is assigned (:data:`TEAM_PROTOCOLS`; default ``resolve``). A world whose team
     has just shrunk is reassigned at once rather than at its next global step, so the
@@ -196,7 +197,7 @@ def min_max(world, global_step: int = 3) -> HungarianGreedy:
     """``h-bottleneck``: h-greedy with the min–max assignment, re-solved every global step.
 
     Not in the paper: Steps waits for the last landmark, so the assignment whose longest
-    trip is shortest (:func:`~masp_lite.algos.assignment.bottleneck`) bounds what any
+    trip is shortest (:func:`~masp_lite.algos.team.bottleneck`) bounds what any
     goal assignment followed by straight lines can do. A drone world is handed to
     ``masp_lite.policies.drone_planners.DroneBottleneck`` (the same assignment, straight flights)."""
     if getattr(getattr(world, "scenario", None), "kind", None) == "drone":
