@@ -4,8 +4,14 @@ import math
 import pytest
 import torch
 
-from masp_lite.algos.drone_trainer import DroneMASPTrainer, crash_charge, motor_commands, velocity_controller
-from masp_lite.algos.mappo import gaussian_entropy, gaussian_log_prob
+from masp_lite.algos.drone_trainer import (
+    DroneMASPTrainer,
+    crash_charge,
+    gaussian_entropy,
+    gaussian_log_prob,
+    motor_commands,
+    velocity_controller,
+)
 from masp_lite.config import NetConfig
 from masp_lite.envs import make
 from masp_lite.envs.drone_model import CONTROL_DT, HOVER_COMMAND

@@ -25,16 +25,36 @@ that hovers where it is does at least as well, so flying on always beats crashin
 """
 from __future__ import annotations
 
+import math
+
 import torch
 
 from ..nets.drones import DroneNets
 from ..planners.geometric import motor_commands, velocity_controller
-from .mappo import gaussian_log_prob
 from .masp_trainer import MASPTrainer
 
-__all__ = ["DroneMASPTrainer", "DRONE_OBS_KEYS", "crash_charge", "motor_commands", "velocity_controller"]
+__all__ = ["DroneMASPTrainer", "DRONE_OBS_KEYS", "crash_charge", "gaussian", "gaussian_log_prob", "gaussian_entropy",
+           "motor_commands", "velocity_controller"]
 
 DRONE_OBS_KEYS = ("agent_pos", "agent_vel", "landmark_pos", "alive", "covered", "reached", "t")
+
+
+def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+    """Log-density (...) of ``actions`` (..., A) under independent normals N(mean, exp(log_std)²), summed over A."""
+    z = (actions - mean) * torch.exp(-log_std)
+    return (-0.5 * z * z - log_std - 0.5 * math.log(2 * math.pi)).sum(-1)
+
+
+def gaussian_entropy(log_std: torch.Tensor, shape) -> torch.Tensor:
+    """Entropy (``shape``) of independent normals with per-dimension ``log_std`` (A,), summed over A."""
+    return (0.5 + 0.5 * math.log(2 * math.pi) + log_std).sum(-1).expand(shape)
+
+
+def gaussian(out, actions):
+    """``(log-probabilities, entropies)`` of ``actions`` under the executor's Gaussian ``out = (mean, log_std)``."""
+    mean, log_std = out
+    logp = gaussian_log_prob(mean, log_std, actions)
+    return logp, gaussian_entropy(log_std, logp.shape)
 
 
 def crash_charge(dist: torch.Tensor, crashed: torch.Tensor, steps_left: int, world_size: float,
@@ -46,7 +66,7 @@ def crash_charge(dist: torch.Tensor, crashed: torch.Tensor, steps_left: int, wor
 class DroneMASPTrainer(MASPTrainer):
     """MASP on a drone scenario (``NetConfig.action`` ``throttle`` or ``velocity``)."""
 
-    distribution = "gaussian"
+    distribution = staticmethod(gaussian)
     nets_class = DroneNets
     obs_keys = DRONE_OBS_KEYS
 

@@ -12,8 +12,7 @@ holds what both levels use, each piece a small function:
 * :class:`RolloutStorage` — named per-step tensors stacked into (T, B, ...) and cut into
   minibatches of (step, world) rows (a row keeps all agents of a world together, since
   the graph networks need the whole team);
-* :func:`sample` (categorical, the particle executor and MPE's 5 actions) and
-  :func:`gaussian_log_prob` / :func:`gaussian_entropy` (the drone executor's Gaussian);
+* :func:`sample` — categorical samples (the executor's 5 MPE actions, the Goal Matcher's goals);
 * :func:`ppo_update` — epochs x minibatches of the combined loss, with gradient clipping.
 
 The settings (:class:`masp_lite.config.PPOConfig`) default to MAGE-X's MAPPO settings
@@ -24,15 +23,12 @@ graphs whose rows must keep a world's agents together.
 """
 from __future__ import annotations
 
-import math
-
 import torch
 from torch import nn
 
 from ..config import PPOConfig
 
-__all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage", "sample", "gaussian_log_prob",
-           "gaussian_entropy", "ppo_update"]
+__all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage", "sample", "ppo_update"]
 
 
 def gae(rewards: torch.Tensor, values: torch.Tensor, next_value: torch.Tensor, gamma: float, lam: float,
@@ -155,27 +151,16 @@ def sample(logits: torch.Tensor, generator: torch.Generator):
     return a, logp
 
 
-def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-    """Log-density (...) of ``actions`` (..., A) under independent normals N(mean, exp(log_std)²), summed over A."""
-    z = (actions - mean) * torch.exp(-log_std)
-    return (-0.5 * z * z - log_std - 0.5 * math.log(2 * math.pi)).sum(-1)
-
-
-def gaussian_entropy(log_std: torch.Tensor, shape) -> torch.Tensor:
-    """Entropy (``shape``) of independent normals with per-dimension ``log_std`` (A,), summed over A."""
-    return (0.5 + 0.5 * math.log(2 * math.pi) + log_std).sum(-1).expand(shape)
-
-
 def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: PPOConfig,
                value_norm: ValueNorm, generator: torch.Generator, epochs: int | None = None,
-               distribution: str = "categorical") -> dict[str, float]:
+               distribution=None) -> dict[str, float]:
     """Run PPO on one level's rollout; returns mean ``policy_loss``, ``value_loss``, ``entropy``.
 
     ``data`` (T, B, ...) must hold ``actions``, ``logp``, ``values`` (normalised critic
     outputs at collection), ``returns`` (raw), ``advantages`` and ``mask`` (alive agents).
     ``evaluate(minibatch) -> (logits, values)`` recomputes the networks on a minibatch;
-    with ``distribution="gaussian"`` (the drone executor) it returns ``((mean, log_std), values)``
-    and ``actions`` are the unclipped samples (:func:`gaussian_log_prob`).
+    ``distribution(out, actions) -> (log-probabilities, entropies)`` replaces the categorical over
+    ``logits`` (the drone executor's Gaussian, :func:`masp_lite.algos.drone_trainer.gaussian`).
     Advantages are standardised over the alive agents of the whole rollout. ``epochs``
     overrides ``cfg.ppo_epochs``.
     """
@@ -190,10 +175,9 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
     for _ in range(cfg.ppo_epochs if epochs is None else epochs):
         for mb in RolloutStorage.minibatches(data, cfg.num_minibatches, generator):
             out, values = evaluate(mb)
-            if distribution == "gaussian":
-                mean, log_std = out
-                logp = gaussian_log_prob(mean, log_std, mb["actions"])
-                entropy = _mean(gaussian_entropy(log_std, logp.shape), mb["mask"])
+            if distribution is not None:
+                logp, entropy = distribution(out, mb["actions"])
+                entropy = _mean(entropy, mb["mask"])
             else:
                 logp_all = torch.log_softmax(out, dim=-1)
                 logp = torch.gather(logp_all, -1, mb["actions"].unsqueeze(-1)).squeeze(-1)

@@ -57,7 +57,7 @@ OBS_KEYS = ("agent_pos", "agent_vel", "landmark_pos", "obstacle_pos", "alive", "
 class MASPTrainer:
     """MASP on one scenario: ``iteration()`` = one rollout + one update of both levels."""
 
-    distribution = "categorical"  # of the executor's actions (the drone trainer's are Gaussian)
+    distribution = None  # categorical executor actions (the drone trainer's are Gaussian)
     nets_class = MASPNets  # the drone trainer's: DroneNets
     obs_keys = OBS_KEYS  # what a stored step keeps of the observation
 

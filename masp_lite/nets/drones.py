@@ -23,7 +23,7 @@ The design is the particle world's (:mod:`masp_lite.nets.masp`), node for node:
   A sample is clipped to [−1, 1] before it reaches the world or the controller; the policy
   is trained on the log-probability of the unclipped sample (the clip belongs to the world),
   which keeps the log-probability exact and the entropy in closed form
-  (:func:`masp_lite.algos.mappo.gaussian_log_prob`). The deterministic action is the clipped mean.
+  (:func:`masp_lite.algos.drone_trainer.gaussian_log_prob`). The deterministic action is the clipped mean.
 * **Critics**: :class:`~masp_lite.nets.masp.GoalMatcherCritic` on the 3-D nodes and
   :class:`~masp_lite.nets.masp.ExecutorCritic` on the executor's features, as in MPE.
 
