@@ -4,18 +4,11 @@ import math
 import pytest
 import torch
 
-from masp_lite.algos.drone_trainer import (
-    DroneMASPTrainer,
-    crash_charge,
-    gaussian_entropy,
-    gaussian_log_prob,
-    motor_commands,
-    velocity_controller,
-)
+from masp_lite.algos.drone_trainer import DroneMASPTrainer, crash_charge, motor_commands, velocity_controller
 from masp_lite.config import NetConfig
 from masp_lite.envs import make
 from masp_lite.envs.drone_model import CONTROL_DT, HOVER_COMMAND
-from masp_lite.nets.drones import DRONE_SPEED, DroneNets, drone_state_features
+from masp_lite.nets.drones import DRONE_SPEED, DroneNets, drone_state_features, gaussian_entropy, gaussian_log_prob
 from masp_lite.policies import make_policy
 from masp_lite.training import method_config, train
 from masp_lite.weights import load_weights, save_weights

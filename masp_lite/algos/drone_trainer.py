@@ -25,29 +25,15 @@ that hovers where it is does at least as well, so flying on always beats crashin
 """
 from __future__ import annotations
 
-import math
-
 import torch
 
-from ..nets.drones import DroneNets
+from ..nets.drones import DroneNets, gaussian_entropy, gaussian_log_prob
 from ..planners.geometric import motor_commands, velocity_controller
 from .masp_trainer import MASPTrainer
 
-__all__ = ["DroneMASPTrainer", "DRONE_OBS_KEYS", "crash_charge", "gaussian", "gaussian_log_prob", "gaussian_entropy",
-           "motor_commands", "velocity_controller"]
+__all__ = ["DroneMASPTrainer", "DRONE_OBS_KEYS", "crash_charge", "gaussian", "motor_commands", "velocity_controller"]
 
 DRONE_OBS_KEYS = ("agent_pos", "agent_vel", "landmark_pos", "alive", "covered", "reached", "t")
-
-
-def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-    """Log-density (...) of ``actions`` (..., A) under independent normals N(mean, exp(log_std)²), summed over A."""
-    z = (actions - mean) * torch.exp(-log_std)
-    return (-0.5 * z * z - log_std - 0.5 * math.log(2 * math.pi)).sum(-1)
-
-
-def gaussian_entropy(log_std: torch.Tensor, shape) -> torch.Tensor:
-    """Entropy (``shape``) of independent normals with per-dimension ``log_std`` (A,), summed over A."""
-    return (0.5 + 0.5 * math.log(2 * math.pi) + log_std).sum(-1).expand(shape)
 
 
 def gaussian(out, actions):

@@ -23,7 +23,7 @@ The design is the particle world's (:mod:`masp_lite.nets.masp`), node for node:
   A sample is clipped to [−1, 1] before it reaches the world or the controller; the policy
   is trained on the log-probability of the unclipped sample (the clip belongs to the world),
   which keeps the log-probability exact and the entropy in closed form
-  (:func:`masp_lite.algos.drone_trainer.gaussian_log_prob`). The deterministic action is the clipped mean.
+  (:func:`gaussian_log_prob`). The deterministic action is the clipped mean.
 * **Critics**: :class:`~masp_lite.nets.masp.GoalMatcherCritic` on the 3-D nodes and
   :class:`~masp_lite.nets.masp.ExecutorCritic` on the executor's features, as in MPE.
 
@@ -33,6 +33,7 @@ weights fine-tune on drone-20, drone-20 weights fly drone-20to10).
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import torch
 from torch import nn
@@ -52,7 +53,8 @@ from .masp import (
     pair_features,
 )
 
-__all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
+__all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "gaussian_log_prob", "gaussian_entropy",
+           "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
 
 DRONE_SENSE = 2.0
 """Metres at which neighbour vectors are clipped."""
@@ -73,6 +75,17 @@ def drone_state_features(obs: dict) -> torch.Tensor:
     R = quat_to_matrix(q / q.norm(dim=-1, keepdim=True).clamp(min=1e-9))
     z = (obs["agent_pos"][..., 2:] - FLIGHT_HEIGHT) / FLIGHT_HEIGHT
     return torch.cat([R.flatten(-2), obs["agent_angvel"] / ANGVEL_SCALE, z, obs["throttle"]], dim=-1).to(q.dtype)
+
+
+def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+    """Log-density (...) of ``actions`` (..., A) under independent normals N(mean, exp(log_std)²), summed over A."""
+    z = (actions - mean) * torch.exp(-log_std)
+    return (-0.5 * z * z - log_std - 0.5 * math.log(2 * math.pi)).sum(-1)
+
+
+def gaussian_entropy(log_std: torch.Tensor, shape) -> torch.Tensor:
+    """Entropy (``shape``) of independent normals with per-dimension ``log_std`` (A,), summed over A."""
+    return (0.5 + 0.5 * math.log(2 * math.pi) + log_std).sum(-1).expand(shape)
 
 
 class DroneExecutor(nn.Module):
