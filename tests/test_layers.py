@@ -9,6 +9,7 @@ ones) count too.
 """
 import ast
 import functools
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -182,3 +183,40 @@ def test_the_reading_path_names_real_files_with_their_line_counts():
         path, stated = PACKAGE / row[1].strip("`"), int(row[2])
         actual = len(path.read_text().splitlines())
         assert abs(actual - stated) <= 0.1 * stated, f"{row[1]}: the reading path says {stated} lines, it has {actual}"
+
+
+# --------------------------------------------------------------------------- the repository in one room
+#: Code that may know the source checkout: the reproduction room and its command line.
+ROOM = ("masp_lite.reproduction", "masp_lite.cli.reproduce")
+#: Not moved yet (the course's modules, another issue's files): they still find the checkout themselves.
+PENDING = {"masp_lite.viz.progress", "masp_lite.course.generate"}
+
+
+def _names_the_repository(path: Path) -> list[str]:
+    """String literals (not docstrings) naming ``results/``, and ``Path(__file__)...parents[k]`` climbs."""
+    tree = ast.parse(path.read_text())
+    docstrings = {id(n.body[0].value) for n in ast.walk(tree)
+                  if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and n.body
+                  and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)}
+    in_paths = {id(x) for n in ast.walk(tree) if isinstance(n, ast.BinOp) and isinstance(n.op, ast.Div)
+                for x in (n.left, n.right)}  # ``root / "results"``
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings and \
+                (re.search(r"(^|/)results/", node.value) or (node.value == "results" and id(node) in in_paths)):
+            found.append(node.value)
+        if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Attribute) and \
+                node.value.attr == "parents" and "__file__" in ast.unparse(node.value):
+            found.append(ast.unparse(node))
+    return found
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if not m.startswith(ROOM) and m not in PENDING))
+def test_only_the_reproduction_room_knows_the_repository(module):
+    found = _names_the_repository(MODULES[module])
+    assert not found, f"{module} names the checkout ({found}); that is masp_lite.reproduction's"
+
+
+def test_the_repository_check_can_fail():
+    assert _names_the_repository(PACKAGE / "reproduction" / "__init__.py")  # the room itself names it
+    assert all(_names_the_repository(MODULES[m]) for m in PENDING)  # drop a module from PENDING once it is moved
