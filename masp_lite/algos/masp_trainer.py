@@ -25,15 +25,12 @@ steps for the Goal Matcher), then :func:`~masp_lite.algos.mappo.ppo_update` trai
 level (only the Goal Matcher when ``train_executor`` is off: a fine-tuning stage that
 leaves the executor, its critic and its value normalisation untouched).
 
-The ablations and the goal-based RL baselines are settings of the same trainer
-(:class:`~masp_lite.config.NetConfig`): ``goal_matcher="random"`` ("MASP w. RG") draws
-distinct random goals when an episode starts (and again when the team changes) and trains
-only the executor; ``goal_matcher="hungarian"`` (``h-mappo``) takes the Hungarian assignment
-every global step and trains only the executor; the ``mlp`` variants are built for the
-scenario's team size (``team_size`` is set from it); ``global_step`` longer than the horizon
-(``mage-x``) assigns goals once, at the start; ``goal_matcher="none"`` (``mappo``,
-``darl1n``) has no goals: the executor sees the landmarks and earns
-:func:`~masp_lite.algos.rewards.coverage_reward` instead of R_CAE.
+The ablations and the RL baselines are settings of the same trainer
+(:class:`~masp_lite.config.NetConfig`), their parts beside this path: their goals come from
+:mod:`masp_lite.algos.goal_sources`, their networks from :mod:`masp_lite.nets.variants`, the
+goal-free ones' reward is :func:`~masp_lite.algos.rewards.coverage_reward`; an ``mlp``
+variant is built for the scenario's team size. The drone trainer
+(:mod:`masp_lite.algos.drone_trainer`) overrides the action step and R_CAE.
 """
 from __future__ import annotations
 
@@ -43,9 +40,8 @@ import torch
 
 from ..config import TrainConfig
 from ..envs import make
-from ..nets.decoding import conditional_logits, random_goals, sequential_sample
+from ..nets.decoding import conditional_logits, sequential_sample
 from ..nets.masp import MASPNets
-from .assignment import hungarian_goals
 from .mappo import RolloutStorage, ValueNorm, gae, ppo_update, sample
 from .rewards import coverage_reward, executor_reward, goal_matcher_reward
 
@@ -79,6 +75,9 @@ class MASPTrainer:
             cfg = self.cfg = dataclasses.replace(cfg, net=dataclasses.replace(cfg.net,
                                                                               team_size=self.world.num_agents))
         self.gm_trained = cfg.net.goal_matcher not in ("random", "hungarian", "none")  # a Goal Matcher to train
+        if not self.gm_trained:  # an ablation's or a baseline's goals, beside MASP's
+            from .goal_sources import scripted_goals
+            self.goal_source = scripted_goals
         torch.manual_seed(self.seed)  # network initialisation
         self.nets = self.nets_class(cfg.net)
         n = self.nets
@@ -124,27 +123,17 @@ class MASPTrainer:
             self._advantages(cae.stacked(), self.cae_norm, cfg.ppo.gamma, update=cfg.run.train_executor), stats
 
     def goal_step(self, t: int, obs: dict, goals, snap: dict, storage: RolloutStorage):
-        """The goals (B, N) for step ``t`` (``None``: goal-free); a Goal Matcher decision is stored with its R_GM.
-
-        The goal source is ``NetConfig.goal_matcher``: MASP's Goal Matcher (``graph``, ``mlp``)
-        samples distinct goals every ``global_step`` steps; ``hungarian`` takes the Hungarian
-        assignment then; ``random`` draws distinct random goals when the episode starts and
-        again when the team changes; ``none`` gives no goals."""
-        source, varying = self.cfg.net.goal_matcher, self.world.scenario.varying
-        goal_mask = ~obs["reached"] if varying else None  # landmarks reached count for SR: pick among the rest
-        if source == "none":
-            return None
-        if source == "random":  # "MASP w. RG": a random assignment, redrawn only when the team changes
-            if goals is None or not torch.equal(obs["alive"], self._drawn_for):
-                self._drawn_for = obs["alive"].clone()
-                return random_goals(obs["alive"], obs["landmark_pos"].shape[1], self.generator, goal_mask)
+        """The goals (B, N) for step ``t``: every ``global_step`` steps the Goal Matcher samples distinct
+        goals, and the decision is stored with its R_GM. Another goal source of ``NetConfig.goal_matcher``
+        (an ablation's or a baseline's: random, Hungarian, none) is :mod:`masp_lite.algos.goal_sources`'."""
+        if not self.gm_trained:
+            goals, self._drawn_for = self.goal_source(self.cfg.net.goal_matcher, t, obs, goals, self._drawn_for,
+                                                      self.cfg.net.global_step, self.generator,
+                                                      self.world.scenario.varying)
             return goals
         if t % self.cfg.net.global_step:
             return goals
-        if source == "hungarian":  # h-mappo, or a drone curriculum stage: the Hungarian assignment
-            if varying:
-                goal_mask = goal_mask | obs["reached"].all(-1, keepdim=True)
-            return hungarian_goals(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask)
+        goal_mask = ~obs["reached"] if self.world.scenario.varying else None  # reached ones count for SR already
         goals, logp, rank = sequential_sample(self.nets.gm_logits(obs, self.scale), obs["alive"], self.generator)
         v = self.nets.gm_value(obs, self.scale, self.horizon)
         r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask,
