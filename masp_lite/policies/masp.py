@@ -79,8 +79,8 @@ class MASPPolicy:
             if checkpoint is None and _LEARNED[name]["weights"] != "shipped":
                 checkpoint = method_checkpoint(name, world.scenario, _LEARNED[name]["weights"])
             self.nets, self.meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
+            self.nets.eval()
             self._check_variant(name)
-        self.nets.eval()
         self.resample = bool(resample)
         gs = self.nets.arch["global_step"] if global_step is None else global_step
         if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
