@@ -67,7 +67,9 @@ def load_records(root=RESULTS_DIR) -> list[dict]:
     the world the file names (files that name none were made in mpe2's world)."""
     root = Path(root)
     if not root.is_dir():
-        raise ValueError(f"records: expected a folder of evaluate records such as results/, got {str(root)!r}")
+        where = " (the records are a source checkout's: this copy of masp_lite is installed without them; " \
+            "pass --records DIR)" if root == RESULTS_DIR else ""
+        raise ValueError(f"records: expected a folder of evaluate records such as results/, got {str(root)!r}{where}")
     out = []
     for path in sorted(root.rglob("*.json")):
         rec = json.loads(path.read_text())
