@@ -24,7 +24,7 @@ import argparse
 
 import torch
 
-import masp_lite.algos.drone_trainer as drone_trainer
+import masp_lite.algos.masp_trainer as masp_trainer
 from experiments import print_validation
 from masp_lite.envs.drone_model import COLLISION_RADIUS
 from masp_lite.envs.drones import DroneWorld
@@ -67,7 +67,7 @@ def main(argv=None) -> int:
         _last["obs"] = obs
         return obs, info
 
-    reward = drone_trainer.executor_reward
+    reward = masp_trainer.executor_reward  # R_CAE, read by the trainer's executor_reward hook
 
     def shaped_reward(agent_pos, goal_pos, agent_collisions, alive, *a, **k):
         r = reward(agent_pos, goal_pos, agent_collisions, alive, *a, **k)
@@ -77,7 +77,7 @@ def main(argv=None) -> int:
         return r - args.coef * torch.where(alive, pen, torch.zeros_like(pen))
 
     DroneWorld.step = recording_step
-    drone_trainer.executor_reward = shaped_reward
+    masp_trainer.executor_reward = shaped_reward
     method, cfg, overrides = method_config("masp", SETTINGS + [f"updates={args.updates}"], "drone-20")
     train("drone-20", cfg, args.out, seed=0, resume=args.resume, init=SHIPPED, overrides=overrides,
           progress=False, method=method,

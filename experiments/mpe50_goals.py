@@ -20,7 +20,8 @@ import argparse
 import numpy as np
 import torch
 
-from masp_lite.algos.assignment import bottleneck, hungarian
+from masp_lite.algos.assignment import hungarian
+from masp_lite.algos.team import bottleneck
 from masp_lite.envs import make
 from masp_lite.evaluation.metrics import steps
 from masp_lite.evaluation.rollouts import rollout

@@ -1,4 +1,4 @@
-"""Training settings, one dataclass per concern, and the one ``KEY=VALUE`` parser.
+"""Training settings, one dataclass per concern.
 
 * :class:`NetConfig` — MASP's architecture; stored with the weights and read back from
   them (:mod:`masp_lite.weights`), so a weights file rebuilds its own networks;
@@ -10,24 +10,20 @@
 * :class:`TrainConfig` — the four together. Its field names are unique across the
   four, so ``--set lr=2e-4`` needs no prefix and a manifest stores one flat dict.
 
-:func:`parse_sets` is the parser of every command's ``--set KEY=VALUE``: each value is
-converted by the type of the field it sets (``int``, ``float``, ``bool`` as
-``true``/``false``, ``str``, ``X | None`` with ``none``, tuples as comma lists) — no
-``eval``. The annotations below are real types (no postponed evaluation) for that reason.
+Every command's ``--set KEY=VALUE`` converts a value by the type of the field it sets
+(:func:`masp_lite.parsing.parse_sets`) — the annotations below are real types (no
+postponed evaluation) for that reason.
 Only settings that the shipped weights use are here; the ones tried and not kept are in
 ``docs/research-log.md``.
 """
 import dataclasses
 import math
-import types
-import typing
 from dataclasses import dataclass, field
 
-__all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig", "parse_value", "parse_sets",
-           "field_types", "FROM_SCRATCH"]
+__all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig", "FROM_SCRATCH"]
 
 
-GM_REFERENCES = ("distance", "squared", "bottleneck")
+GM_REFERENCES = ("distance", "squared")
 """The settings of :attr:`RewardConfig.gm_reference`."""
 GOAL_MATCHERS = ("graph", "mlp", "random", "hungarian", "none")
 EXECUTORS = ("graph", "mlp", "nearest", "subgraph", "attention", "radius")
@@ -169,8 +165,8 @@ class RewardConfig:
     gm_reference: str = "distance"
     """R_GM's reference assignment and the cost ``D`` it is scored by (eq. 1): ``distance``,
     the Hungarian assignment on distances (the paper's reading); ``squared``, on squared
-    distances (shorter longest trips); ``bottleneck``, the min-max assignment, ``D`` the
-    longest trip (what Steps follows). The paper does not give the reference's costs."""
+    distances (shorter longest trips). The paper does not give the reference's costs (the
+    min-max reference, tried and not kept, is in ``docs/research-log.md``)."""
 
     def __post_init__(self):
         for name in ("bonus_coef", "distance_coef", "collision_coef"):
@@ -246,95 +242,3 @@ FROM_SCRATCH = {"num_envs": 32, "updates": 150, "eval_every": 25, "eval_episodes
                 "ppo_epochs": 5, "collision_coef": 2.0}
 """The one-stage recipe from random networks on ``mpe-20`` (``results/training/faithful/``;
 ``--set KEY=VALUE`` for each): what the ablations and ``bench train`` use."""
-
-
-def field_types(cls) -> dict[str, object]:
-    """``{field name: type}`` of a dataclass (of every part, for :class:`TrainConfig`)."""
-    if cls is TrainConfig:
-        return {k: v for c in _PARTS.values() for k, v in field_types(c).items()}
-    hints = typing.get_type_hints(cls)
-    return {f.name: hints[f.name] for f in dataclasses.fields(cls)}
-
-
-def _guess(text: str):
-    for cast in (int, float):
-        try:
-            return cast(text)
-        except ValueError:
-            pass
-    return parse_value(text, bool) if text.lower() in ("true", "false") else \
-        None if text.lower() in ("none", "null") else text
-
-
-def parse_value(text: str, typ=None):
-    """Convert one ``--set`` value to ``typ``; without a type: int, float, bool, none, else str.
-
-    >>> parse_value("none", int | None) is None, parse_value("3", float), parse_value("1,2", tuple[int, ...])
-    (True, 3.0, (1, 2))
-    """
-    text = text.strip()
-    if typ is None or typ is typing.Any:
-        return _guess(text)
-    args = typing.get_args(typ)
-    if isinstance(typ, types.UnionType) or typing.get_origin(typ) is typing.Union:
-        if type(None) in args and text.lower() in ("none", "null"):
-            return None
-        rest = [a for a in args if a is not type(None)]
-        for a in rest:
-            try:
-                return parse_value(text, a)
-            except ValueError:
-                pass
-        raise ValueError(f"expected {' or '.join(getattr(a, '__name__', str(a)) for a in args)}, got {text!r}")
-    if typing.get_origin(typ) is tuple:
-        items = [t for t in text.strip("()").split(",") if t.strip()]
-        inner = args[0] if args else None
-        return tuple(parse_value(t, inner) for t in items)
-    if typ is bool:
-        if text.lower() not in ("true", "false"):
-            raise ValueError(f"expected true or false, got {text!r}")
-        return text.lower() == "true"
-    if typ is int:
-        try:
-            f = float(text)
-        except ValueError:
-            raise ValueError(f"expected an int, got {text!r}") from None
-        if not f.is_integer():
-            raise ValueError(f"expected an int, got {text!r}")
-        return int(f)
-    if typ is float:
-        try:
-            return float(text)
-        except ValueError:
-            raise ValueError(f"expected a number, got {text!r}") from None
-    if typ is str:
-        return text
-    raise ValueError(f"cannot parse a value of type {typ!r}")
-
-
-def parse_sets(items, targets: dict[str, dict[str, object]]) -> dict[str, dict]:
-    """Split ``KEY=VALUE`` strings among named targets and convert each value by its type.
-
-    ``targets``: ``{target name: {key: type or None}}``, e.g. ``{"scenario override":
-    {"num_agents": int, ...}, "training setting": field_types(TrainConfig)}``; a key goes
-    to the first target that has it. Returns ``{target name: {key: value}}``. A string
-    without ``=``, an unknown key or a value of the wrong type is one clear error that
-    lists what is accepted.
-    """
-    out = {name: {} for name in targets}
-    for item in items or []:
-        key, sep, text = str(item).partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise ValueError(f"--set {item!r}: expected KEY=VALUE")
-        for name, keys in targets.items():
-            if key in keys:
-                try:
-                    out[name][key] = parse_value(text, keys[key])
-                except ValueError as e:
-                    raise ValueError(f"--set {key}={text!r}: {e}") from None
-                break
-        else:
-            known = "; ".join(f"{name}s {sorted(keys)}" for name, keys in targets.items())
-            raise ValueError(f"--set {key}: unknown; expected one of the {known}")
-    return out

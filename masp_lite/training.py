@@ -1,4 +1,4 @@
-"""Training runs: a folder that survives being killed, a manifest, and shipping the weights.
+"""Training runs: a folder that survives being killed, and a manifest.
 
 :func:`train` runs MASP (:class:`~masp_lite.algos.masp_trainer.MASPTrainer`) and writes, in
 its run folder (``python -m masp_lite train`` defaults to ``runs/masp-SCENARIO-seedS``):
@@ -24,10 +24,8 @@ Refused with one clear error, nothing overwritten: ``resume`` without ``state.pt
 existing ``state.pt`` without ``resume``; a corrupt state; a state trained with another
 scenario or configuration (only ``updates`` may grow on resume).
 
-:func:`ship_run` copies a finished run's weights into a weights folder (the source
-tree's ``masp_lite/weights/``, given explicitly: nothing is written into an installed
-package) and its whole history (manifests and curves of every stage) into a history
-folder (``results/training/``).
+Keeping a finished run in a source checkout (its weights shipped, its history kept) is the
+reproduction room's (:mod:`masp_lite.reproduction.shipping`).
 """
 from __future__ import annotations
 
@@ -42,18 +40,16 @@ from pathlib import Path
 
 import torch
 
-from .algos.drone_trainer import DroneMASPTrainer
 from .algos.mappo import NonFiniteError
 from .algos.masp_trainer import MASPTrainer
-from .config import TrainConfig, field_types, parse_sets
-from .envs import OVERRIDES, Scenario, get_scenario, make
+from .config import TrainConfig
+from .envs import OVERRIDES, get_scenario, make
 from .evaluation import collision_rate, rollout, steps, success_rate
-from .policies.drone_masp import DRONE_METHODS, DroneMASPPolicy
-from .policies.masp import METHOD_SETTINGS, VARIANTS, MASPPolicy
-from .weights import atomic_write_bytes, load_weights, read_weights, save_weights, sha256, trained_world
+from .parsing import field_types, parse_sets
+from .policies import get_factory, learned_methods
+from .weights import atomic_write_bytes, load_weights, save_weights, sha256
 
-__all__ = ["train", "parse_config", "method_config", "evaluate_nets", "checkpoint_iterations", "ship_run",
-           "ship_zero_shot",
+__all__ = ["train", "parse_config", "method_config", "evaluate_nets", "checkpoint_iterations", "trainer_class",
            "CSV_FIELDS", "EVAL_SEED"]
 
 CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward",
@@ -65,7 +61,8 @@ EVAL_SEED = 12_345
 def method_config(method: str | None, sets=(), scenario: str | None = None) -> tuple[str, TrainConfig, dict]:
     """``(method, config, scenario overrides)`` of ``train [--method METHOD] --set ...``.
 
-    The configuration is the method's settings (:data:`METHOD_SETTINGS`), then ``sets``.
+    The configuration is the method's settings (its ``nets`` and ``train`` in the method table,
+    :data:`masp_lite.policies.METHODS`), then ``sets``.
     Without a method, the one whose settings ``sets`` give is meant (``--set
     goal_matcher=random`` is ``masp-rg``, as the ablations' manifests were written), MASP by
     default. One clear error for a method that is not trained here, a ``--set`` that would
@@ -73,25 +70,27 @@ def method_config(method: str | None, sets=(), scenario: str | None = None) -> t
     """
     if scenario is not None and get_scenario(scenario).kind == "drone":
         return _drone_method_config(method, sets, scenario)
+    table = learned_methods("particle")
+    variants = {m: e["nets"] for m, e in table.items()}
     if method is None:
         cfg, _ = parse_config(sets)
         got = {k: getattr(cfg.net, k) for k in ("goal_matcher", "executor")}
-        match = [m for m, v in VARIANTS.items() if v == got]
+        match = [m for m, v in variants.items() if v == got]
         if not match:
             raise ValueError(f"train: no method has the settings {got}; expected one of "
-                             + "; ".join(f"{m} {v}" for m, v in VARIANTS.items()))
+                             + "; ".join(f"{m} {v}" for m, v in variants.items()))
         method = match[0]
-    if method not in METHOD_SETTINGS:
-        raise ValueError(f"train: {method!r} is not a method trained here; expected one of {sorted(METHOD_SETTINGS)}")
+    if method not in table:
+        raise ValueError(f"train: {method!r} is not a method trained here; expected one of {sorted(table)}")
     if "action" in dict(s.split("=", 1) for s in sets if "=" in s):
         raise ValueError("train: --set action is for drone scenarios (drone-*); particle networks take MPE's "
                          "discrete actions")
-    own = METHOD_SETTINGS[method]
+    own = {**table[method]["nets"], **table[method].get("train", {})}
     cfg, overrides = parse_config([f"{k}={v}" for k, v in own.items()] + list(sets))
-    for k in VARIANTS[method]:
+    for k in variants[method]:
         if getattr(cfg.net, k) != own[k]:
             raise ValueError(f"train --method {method}: {k} is {own[k]!r} for this method; --set {k}="
-                             f"{getattr(cfg.net, k)} makes another one (see masp_lite.policies.masp.VARIANTS)")
+                             f"{getattr(cfg.net, k)} makes another one (see masp_lite.policies.METHODS)")
     return method, cfg, overrides
 
 
@@ -108,23 +107,22 @@ def _layout(arch: dict) -> dict:
 def _drone_method_config(method, sets, scenario) -> tuple[str, TrainConfig, dict]:
     """:func:`method_config` for a drone scenario: ``masp`` (motor commands) or ``masp-velocity``."""
     given = dict(s.split("=", 1) for s in sets if "=" in s)
+    drone_actions = {m: e["nets"]["action"] for m, e in learned_methods("drone").items()}
     if method is None:
         method = "masp-velocity" if given.get("action") == "velocity" else "masp"
-    if method not in DRONE_METHODS:
-        raise ValueError(f"train --method {method}: drone scenarios ({scenario!r}) train {sorted(DRONE_METHODS)}")
-    action = DRONE_METHODS[method]
+    if method not in drone_actions:
+        raise ValueError(f"train --method {method}: drone scenarios ({scenario!r}) train {sorted(drone_actions)}")
+    action = drone_actions[method]
     if given.get("action", action) != action:
         raise ValueError(f"train --method {method}: action is {action!r} for this method; --set action="
-                         f"{given['action']} makes another one ({sorted(DRONE_METHODS)})")
+                         f"{given['action']} makes another one ({sorted(drone_actions)})")
     cfg, overrides = parse_config([f"action={action}", *sets])
     return method, cfg, overrides
 
 
 def parse_config(sets) -> tuple[TrainConfig, dict]:
-    """``KEY=VALUE`` strings -> (TrainConfig, scenario overrides), by :func:`masp_lite.config.parse_sets`."""
-    types = field_types(Scenario)
-    got = parse_sets(sets, {"training setting": field_types(TrainConfig),
-                            "scenario override": {k: types[k] for k in OVERRIDES}})
+    """``KEY=VALUE`` strings -> (TrainConfig, scenario overrides), by :func:`masp_lite.parsing.parse_sets`."""
+    got = parse_sets(sets, {"training setting": field_types(TrainConfig), "scenario override": OVERRIDES})
     return TrainConfig.from_flat(got["training setting"]), got["scenario override"]
 
 
@@ -133,7 +131,7 @@ def evaluate_nets(nets, scenario, overrides=None, episodes: int = 32, seed: int 
     world = make(scenario, num_envs=min(episodes, 100), seed=seed, **(overrides or {}))
     was = nets.training
     nets.eval()
-    cls = DroneMASPPolicy if nets.config.world == "drone" else MASPPolicy
+    cls = get_factory("masp", nets.config.world).func  # the learned policy class of the world's kind
     log, dt = rollout(world, cls.from_nets(world, nets, seed=seed), episodes, seed)
     nets.train(was)
     return {"sr": float(success_rate(log).mean()), "steps": float(steps(log).mean()),
@@ -258,6 +256,14 @@ def _bar_text(row: dict, rows: list[dict]) -> str:
     return text
 
 
+def trainer_class(kind: str) -> type[MASPTrainer]:
+    """The trainer of a world kind: :class:`MASPTrainer`, or for drones its subclass (MuJoCo only then)."""
+    if kind == "drone":
+        from .algos.drone_trainer import DroneMASPTrainer
+        return DroneMASPTrainer
+    return MASPTrainer
+
+
 def checkpoint_iterations(out) -> int | None:
     """Iterations done in the training state of run folder ``out``; ``None`` when there is none yet.
 
@@ -279,7 +285,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
     if not resume and state_path.exists():
         raise ValueError(f"{state_path} exists; pass --resume to continue it or choose another --out")
     kind = get_scenario(scenario).kind if isinstance(scenario, str) else scenario.kind
-    trainer = (DroneMASPTrainer if kind == "drone" else MASPTrainer)(scenario, cfg, seed=seed, overrides=overrides)
+    trainer = trainer_class(kind)(scenario, cfg, seed=seed, overrides=overrides)
     wall_before, rows, started = 0.0, [], datetime.now(timezone.utc).isoformat(timespec="seconds")
     default_command = f"python -m masp_lite train --method {method} --scenario {scenario} --seed {seed}"
     first_command = None
@@ -372,120 +378,3 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         return manifest
     finally:
         _release_lock(lock)
-
-
-_RUN_INFO = ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s", "started", "finished", "machine",
-             "config", "final_eval")
-_RUN_EXTRA = ("last_command", "overrides", "world", "method")  # absent from older manifests
-
-
-def _run_info(m: dict) -> dict:
-    return {**{k: m[k] for k in _RUN_INFO}, **{k: m[k] for k in _RUN_EXTRA if k in m}}
-
-
-def _read_run(manifest, progress):
-    """``(scenario, run information, curves bytes or None)`` of one finished run."""
-    sm = json.loads(Path(manifest).read_text())
-    missing = [key for key in _RUN_INFO if key not in sm]
-    if missing:
-        raise ValueError(f"{manifest}: expected a run manifest; missing {missing}")
-    return sm.get("scenario"), _run_info(sm), Path(progress).read_bytes() if Path(progress).exists() else None
-
-
-def _earlier_runs(earlier):
-    """The stages of ``earlier`` (see :func:`ship_run`), oldest first, as :func:`_read_run` gives them."""
-    out = []
-    for item in earlier:
-        if isinstance(item, (str, Path)):  # a kept history: every stage, with its curves
-            history = json.loads(Path(item).read_text())
-            if "stages" not in history:
-                raise ValueError(f"{item}: expected a training history (SCENARIO-seedS.manifest.json)")
-            for st in history["stages"]:
-                curves = Path(item).parent / st["progress"]
-                out.append((st["scenario"], st["training"], curves.read_bytes() if curves.exists() else None))
-        else:
-            out.append(_read_run(*item))
-    return out
-
-
-def ship_zero_shot(weights_dir, scenario: str, source: str, note: str) -> dict:
-    """Ship the weights of the preset ``source`` for the preset ``scenario`` as well, unchanged.
-
-    The size-invariant networks then run zero-shot on ``scenario``: its entry in
-    ``weights_dir/manifest.json`` copies ``source``'s (file, hash, history) and adds
-    ``"trained_on": source`` and ``note`` (why no weights of its own ship). Returns the entry."""
-    manifest_path = Path(weights_dir) / "manifest.json"
-    manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
-    if source not in manifest or manifest[source].get("trained_on"):
-        raise ValueError(f"ship_zero_shot: expected shipped weights trained on {source!r}; the manifest has "
-                         f"{sorted(k for k, v in manifest.items() if not v.get('trained_on'))}")
-    manifest[scenario] = _zero_shot_entry(manifest, scenario, source, note)
-    _write_json(manifest_path, manifest)
-    return manifest[scenario]
-
-
-def _zero_shot_entry(manifest: dict, scenario: str, source: str, note: str) -> dict:
-    return {**manifest[source], "scenario": scenario, "trained_on": source, "note": note}
-
-
-def _write_json(path, obj) -> None:
-    atomic_write_bytes(path, (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode())
-
-
-def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dict | None = None,
-             note: str | None = None) -> dict:
-    """Keep a finished run: its history in ``history_dir``, its weights shipped or beside the history.
-
-    ``history_dir`` (``results/training/``) receives ``SCENARIO-seedS.manifest.json`` —
-    every stage's run information (command, configuration, seed, env steps, wall-clock,
-    machine, final evaluation) and curves (``SCENARIO-seedS[.stageK].progress.csv``), from
-    scratch to the last fine-tuning, plus ``evaluation`` (an ``evaluate()`` record) and a
-    free-text ``note``. ``earlier``: the stages this run was fine-tuned from, oldest first,
-    each a pair of paths ``(manifest.json, progress.csv)`` of a finished run, or the path of a
-    history this function kept before (``SCENARIO-seedS.manifest.json``: all its stages).
-
-    With ``weights_dir`` (the source tree's ``masp_lite/weights/``) the weights become the
-    shipped ``SCENARIO.pt`` there, with a slim entry in its ``manifest.json``; without it
-    they are kept as ``SCENARIO-seedS.pt`` in ``history_dir`` (training seeds that are not
-    shipped). Returns the history manifest.
-    """
-    run_dir, history_dir = Path(run_dir), Path(history_dir)
-    if not (run_dir / "manifest.json").exists():
-        raise ValueError(f"{run_dir}: expected a finished run (manifest.json)")
-    m = json.loads((run_dir / "manifest.json").read_text())
-    rec = read_weights(run_dir / "weights.pt")
-    name, seed = rec["scenario"], int(m["seed"])
-    stem = f"{name}-seed{seed}"
-    runs = [*_earlier_runs(earlier), _read_run(run_dir / "manifest.json", run_dir / "progress.csv")]
-    stages = []
-    for k, (scenario, info, curves) in enumerate(runs, start=1):
-        target = f"{stem}.stage{k}.progress.csv" if k < len(runs) else f"{stem}.progress.csv"
-        if curves is not None:
-            atomic_write_bytes(history_dir / target, curves)
-        stages.append({"scenario": scenario, "training": info, "progress": target})
-    data = (run_dir / "weights.pt").read_bytes()
-    if weights_dir is None:
-        file, target = f"{stem}.pt", history_dir / f"{stem}.pt"
-    else:
-        file, target = f"{name}.pt", Path(weights_dir) / f"{name}.pt"
-    atomic_write_bytes(target, data)
-    digest = sha256(target)
-    history = {"scenario": name, "world": trained_world(rec), "seed": seed, "file": file, "sha256": digest,
-               "arch": rec["arch"],
-               "evaluation": evaluation, "note": note, "stages": stages}
-    _write_json(history_dir / f"{stem}.manifest.json", history)
-    if weights_dir is not None:
-        manifest_path = Path(weights_dir) / "manifest.json"
-        manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
-        runs = [st["training"] for st in stages]
-        manifest[name] = {"file": file, "sha256": digest, "scenario": name, "world": trained_world(rec),
-                          "arch": rec["arch"], "seed": seed,
-                          "command": runs[-1]["command"], "stages": len(runs),
-                          "env_steps": sum(r["env_steps"] for r in runs),
-                          "wall_clock_s": round(sum(r["wall_clock_s"] for r in runs), 1),
-                          "machine": runs[-1]["machine"], "history": f"results/training/{stem}.manifest.json"}
-        for other, entry in manifest.items():  # presets that ship these weights zero-shot follow them
-            if entry.get("trained_on") == name:
-                manifest[other] = _zero_shot_entry(manifest, other, name, entry["note"])
-        _write_json(manifest_path, manifest)
-    return history

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from masp_lite.algos.assignment import assignment_cost, hungarian, hungarian_random_subset
+from masp_lite.algos.assignment import assignment_cost, hungarian
+from masp_lite.algos.team import hungarian_random_subset
 
 
 def brute_force(a, g, power=1.0):
@@ -116,7 +117,7 @@ def test_squared_cost_shortens_the_longest_trip():
 def test_bottleneck_minimises_the_longest_trip_then_the_total():
     import itertools
 
-    from masp_lite.algos.assignment import bottleneck
+    from masp_lite.algos.team import bottleneck
     g = torch.Generator().manual_seed(0)
     for n, m in ((5, 5), (4, 6), (6, 4)):
         a, goals = torch.rand(20, n, 2, generator=g), torch.rand(20, m, 2, generator=g)
@@ -138,7 +139,7 @@ def test_bottleneck_minimises_the_longest_trip_then_the_total():
 
 
 def test_sequential_keeps_goals_until_reached_and_hands_on_the_rest():
-    from masp_lite.algos.assignment import sequential
+    from masp_lite.algos.team import sequential
     a = torch.tensor([[[0.0, 0.0], [5.0, 0.0]]])
     g = torch.tensor([[[0.1, 0.0], [5.1, 0.0], [9.0, 0.0], [-3.0, 0.0]]])
     avail = torch.ones(1, 4, dtype=torch.bool)

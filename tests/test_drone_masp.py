@@ -8,13 +8,7 @@ from masp_lite.algos.drone_trainer import DroneMASPTrainer, crash_charge, motor_
 from masp_lite.config import NetConfig
 from masp_lite.envs import make
 from masp_lite.envs.drone_model import CONTROL_DT, HOVER_COMMAND
-from masp_lite.nets.drones import (
-    DRONE_SPEED,
-    DroneNets,
-    drone_state_features,
-    gaussian_entropy,
-    gaussian_log_prob,
-)
+from masp_lite.nets.drones import DRONE_SPEED, DroneNets, drone_state_features, gaussian_entropy, gaussian_log_prob
 from masp_lite.policies import make_policy
 from masp_lite.training import method_config, train
 from masp_lite.weights import load_weights, save_weights

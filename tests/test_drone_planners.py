@@ -172,5 +172,5 @@ def test_varying_team_assigns_only_unreached_landmarks():
 def test_h_capt_refuses_a_drone_world_clearly():
     from masp_lite.envs import make
     from masp_lite.policies import make_policy
-    with pytest.raises(ValueError, match="h-capt: expected a particle world"):
+    with pytest.raises(ValueError, match="h-capt: no policy for drone worlds; expected a particle scenario"):
         make_policy("h-capt", make("drone-5", num_envs=1, seed=0))

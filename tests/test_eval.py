@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 import torch
 
-from masp_lite.config import parse_value
 from masp_lite.envs import make
 from masp_lite.evaluation import (
     CONTACT_KINDS,
@@ -18,6 +17,7 @@ from masp_lite.evaluation import (
     steps,
     success_rate,
 )
+from masp_lite.parsing import parse_value
 from masp_lite.policies.reference import RandomPolicy
 
 
@@ -176,7 +176,7 @@ def test_evaluate_bad_input():
 
 # ------------------------------------------------------------------ claims
 def test_better_and_verdict_metric_by_metric():
-    from masp_lite.evaluation.claims import better, verdict
+    from masp_lite.reproduction.claims import better, verdict
     assert better("sr", 0.9, 0.8) == "a" and better("steps", 9.0, 8.0) == "b" and better("cr", 0.1, 0.2) == "a"
     assert better("steps", None, 40.0) == "b" and better("steps", 40.0, None) == "a"
     assert better("steps", None, None) == "neither" and better("cr", 0.3, 0.3 + 1e-12) == "tie"
@@ -190,7 +190,7 @@ def test_better_and_verdict_metric_by_metric():
 
 
 def test_against_paper_uses_the_metrics_the_paper_reports():
-    from masp_lite.evaluation.claims import PAPER_MASP, against_paper
+    from masp_lite.reproduction.claims import PAPER_MASP, against_paper
     rec = {"scenario": "mpe-50", "sr": {"mean": 1.0}, "steps": {"mean": 50.0}, "cr": {"mean": 0.23}}
     lines = against_paper(rec)
     assert [line.split(":")[0].strip() for line in lines] == ["SR", "Steps", "CR"]

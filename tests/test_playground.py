@@ -92,7 +92,7 @@ def test_drones_show_two_meshcat_pages_and_report_a_bad_choice():
     assert [m["t"] for m in pg.metrics] == [12, 12]
     pg.method_b.value = "h-capt"                      # a particle-only method: the status line says so
     pg.run_button.click()
-    assert "expected a particle world" in pg.status.value and pg.episodes == (a, b)
+    assert "expected a particle scenario" in pg.status.value and pg.episodes == (a, b)
 
 
 @pytest.mark.parametrize("kwargs, match", [

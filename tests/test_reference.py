@@ -112,7 +112,7 @@ def test_h_greedy_reassigns_as_soon_as_the_team_shrinks():
 
 
 def test_h_capt_and_h_bottleneck_are_h_greedy_with_another_assignment():
-    from masp_lite.algos.assignment import bottleneck
+    from masp_lite.algos.team import bottleneck
     from masp_lite.evaluation import rollout
     w = make("mpe-20", num_envs=4, seed=5)
     obs = w.reset(seed=5)

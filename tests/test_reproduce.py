@@ -6,7 +6,7 @@ import pytest
 
 from masp_lite.cli import main
 from masp_lite.envs import get_scenario
-from masp_lite.evaluation import reproduce as rp
+from masp_lite.reproduction import reproduce as rp
 
 
 def _rec(method, scenario, steps=10.0, world=None, **extra):

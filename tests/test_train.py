@@ -174,19 +174,24 @@ def test_parse_config_and_cli_errors(tmp_path, capsys):
 
 
 def test_shipped_weights_load_and_act():
+    """Every shipped weights file, and every packaged one of the other learned methods, loads and acts."""
     from masp_lite.envs import make
-    from masp_lite.policies.masp import MASPPolicy
+    from masp_lite.policies import METHODS, make_policy
     from masp_lite.weights import MANIFEST, read_manifest
     if not MANIFEST.exists():
         pytest.skip("no shipped weights in this version")
-    for name, entry in read_manifest().items():
-        assert (MANIFEST.parent / entry["file"]).stat().st_size < 1_000_000
-        w = make(name, num_envs=2, seed=0)
-        pol = MASPPolicy(w)
+    assert all((MANIFEST.parent / e["file"]).stat().st_size < 1_000_000 for e in read_manifest().values())
+    runs = [("masp", name) for name in read_manifest()]
+    runs += [(m, preset) for m, kinds in METHODS.items() for e in kinds.values()
+             if isinstance(e.get("weights"), tuple) for preset in e["weights"]]
+    assert len(runs) >= 24
+    for method, name in runs:
+        w = make(name, num_envs=2, seed=0, **({"horizon": 5} if name.startswith("drone") else {}))
+        pol = make_policy(method, w)
         obs = w.reset()
         pol.reset(obs)
         shape = (2, w.num_agents, 4) if w.scenario.kind == "drone" else (2, w.num_agents)
-        assert pol.act(obs).shape == shape  # drones: motor commands
+        assert pol.act(obs).shape == shape, (method, name)  # drones: motor commands
 
 
 def test_shipped_file_that_differs_from_manifest_is_refused(tmp_path, monkeypatch):
@@ -221,7 +226,7 @@ def test_goal_matcher_only_fine_tuning_leaves_the_executor_untouched(tmp_path):
 
 
 def test_ship_run_keeps_every_stage_and_ships_only_where_told(tmp_path):
-    from masp_lite.training import ship_run
+    from masp_lite.reproduction.shipping import ship_run
     weights_dir, history = tmp_path / "weights", tmp_path / "history"
     cfg = MAPPOConfig(**{**TINY, "updates": 2})
     first = train("mpe-5", cfg, tmp_path / "first", seed=0, progress=False)
@@ -260,7 +265,7 @@ def test_ship_run_keeps_every_stage_and_ships_only_where_told(tmp_path):
 
 def test_a_preset_can_ship_another_presets_weights_zero_shot(tmp_path, monkeypatch):
     import masp_lite.weights as weights
-    from masp_lite.training import ship_run, ship_zero_shot
+    from masp_lite.reproduction.shipping import ship_run, ship_zero_shot
     cfg = MAPPOConfig(**{**TINY, "updates": 1})
     train("mpe-5", cfg, tmp_path / "run", seed=0, progress=False)
     wd = tmp_path / "weights"

@@ -12,6 +12,7 @@ holds what both levels use, each piece a small function:
 * :class:`RolloutStorage` — named per-step tensors stacked into (T, B, ...) and cut into
   minibatches of (step, world) rows (a row keeps all agents of a world together, since
   the graph networks need the whole team);
+* :func:`sample` — categorical samples (the executor's 5 MPE actions, the Goal Matcher's goals);
 * :func:`ppo_update` — epochs x minibatches of the combined loss, with gradient clipping.
 
 The settings (:class:`masp_lite.config.PPOConfig`) default to MAGE-X's MAPPO settings
@@ -26,10 +27,9 @@ import torch
 from torch import nn
 
 from ..config import PPOConfig
-from ..nets.drones import gaussian_entropy, gaussian_log_prob
 
-__all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage",
-           "ppo_update", "NonFiniteError"]
+__all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage", "sample", "ppo_update",
+           "NonFiniteError"]
 
 
 def gae(rewards: torch.Tensor, values: torch.Tensor, next_value: torch.Tensor, gamma: float, lam: float,
@@ -144,20 +144,28 @@ class RolloutStorage:
             yield {k: v[idx] for k, v in flat.items()}
 
 
+def sample(logits: torch.Tensor, generator: torch.Generator):
+    """Categorical samples and their log-probabilities via the Gumbel-max trick (seeded)."""
+    u = torch.rand(logits.shape, generator=generator, dtype=logits.dtype).clamp(1e-10, 1.0)
+    a = (logits - torch.log(-torch.log(u))).argmax(-1)
+    logp = torch.gather(torch.log_softmax(logits, -1), -1, a.unsqueeze(-1)).squeeze(-1)
+    return a, logp
+
+
 class NonFiniteError(ValueError):
     """A PPO update met a non-finite loss or gradient; raised before the optimizer steps."""
 
 
 def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: PPOConfig,
                value_norm: ValueNorm, generator: torch.Generator, epochs: int | None = None,
-               distribution: str = "categorical") -> dict[str, float]:
+               distribution=None) -> dict[str, float]:
     """Run PPO on one level's rollout; returns mean ``policy_loss``, ``value_loss``, ``entropy``.
 
     ``data`` (T, B, ...) must hold ``actions``, ``logp``, ``values`` (normalised critic
     outputs at collection), ``returns`` (raw), ``advantages`` and ``mask`` (alive agents).
     ``evaluate(minibatch) -> (logits, values)`` recomputes the networks on a minibatch;
-    with ``distribution="gaussian"`` (the drone executor) it returns ``((mean, log_std), values)``
-    and ``actions`` are the unclipped samples (:func:`~masp_lite.nets.drones.gaussian_log_prob`).
+    ``distribution(out, actions) -> (log-probabilities, entropies)`` replaces the categorical over
+    ``logits`` (the drone executor's Gaussian, :func:`masp_lite.algos.drone_trainer.gaussian`).
     Advantages are standardised over the alive agents of the whole rollout. ``epochs``
     overrides ``cfg.ppo_epochs``.
     """
@@ -172,10 +180,9 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
     for _ in range(cfg.ppo_epochs if epochs is None else epochs):
         for mb in RolloutStorage.minibatches(data, cfg.num_minibatches, generator):
             out, values = evaluate(mb)
-            if distribution == "gaussian":
-                mean, log_std = out
-                logp = gaussian_log_prob(mean, log_std, mb["actions"])
-                entropy = _mean(gaussian_entropy(log_std, logp.shape), mb["mask"])
+            if distribution is not None:
+                logp, entropy = distribution(out, mb["actions"])
+                entropy = _mean(entropy, mb["mask"])
             else:
                 logp_all = torch.log_softmax(out, dim=-1)
                 logp = torch.gather(logp_all, -1, mb["actions"].unsqueeze(-1)).squeeze(-1)

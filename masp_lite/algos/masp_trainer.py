@@ -25,15 +25,12 @@ steps for the Goal Matcher), then :func:`~masp_lite.algos.mappo.ppo_update` trai
 level (only the Goal Matcher when ``train_executor`` is off: a fine-tuning stage that
 leaves the executor, its critic and its value normalisation untouched).
 
-The ablations and the goal-based RL baselines are settings of the same trainer
-(:class:`~masp_lite.config.NetConfig`): ``goal_matcher="random"`` ("MASP w. RG") draws
-distinct random goals when an episode starts (and again when the team changes) and trains
-only the executor; ``goal_matcher="hungarian"`` (``h-mappo``) takes the Hungarian assignment
-every global step and trains only the executor; the ``mlp`` variants are built for the
-scenario's team size (``team_size`` is set from it); ``global_step`` longer than the horizon
-(``mage-x``) assigns goals once, at the start; ``goal_matcher="none"`` (``mappo``,
-``darl1n``) has no goals: the executor sees the landmarks and earns
-:func:`~masp_lite.algos.rewards.coverage_reward` instead of R_CAE.
+The ablations and the RL baselines are settings of the same trainer
+(:class:`~masp_lite.config.NetConfig`), their parts beside this path: their goals come from
+:mod:`masp_lite.algos.goal_sources`, their networks from :mod:`masp_lite.nets.variants`, the
+goal-free ones' reward is :func:`~masp_lite.algos.rewards.coverage_reward`; an ``mlp``
+variant is built for the scenario's team size. The drone trainer
+(:mod:`masp_lite.algos.drone_trainer`) overrides the action step and R_CAE.
 """
 from __future__ import annotations
 
@@ -43,11 +40,9 @@ import torch
 
 from ..config import TrainConfig
 from ..envs import make
-from ..nets.decoding import conditional_logits, random_goals, sequential_sample
-from ..nets.drones import DroneNets
+from ..nets.decoding import conditional_logits, sequential_sample
 from ..nets.masp import MASPNets
-from .assignment import hungarian_goals
-from .mappo import RolloutStorage, ValueNorm, gae, ppo_update
+from .mappo import RolloutStorage, ValueNorm, gae, ppo_update, sample
 from .rewards import coverage_reward, executor_reward, goal_matcher_reward
 
 __all__ = ["MASPTrainer", "sample", "OBS_KEYS"]
@@ -55,18 +50,12 @@ __all__ = ["MASPTrainer", "sample", "OBS_KEYS"]
 OBS_KEYS = ("agent_pos", "agent_vel", "landmark_pos", "obstacle_pos", "alive", "covered", "reached", "t")
 
 
-def sample(logits: torch.Tensor, generator: torch.Generator):
-    """Categorical samples and their log-probabilities via the Gumbel-max trick (seeded)."""
-    u = torch.rand(logits.shape, generator=generator, dtype=logits.dtype).clamp(1e-10, 1.0)
-    a = (logits - torch.log(-torch.log(u))).argmax(-1)
-    logp = torch.gather(torch.log_softmax(logits, -1), -1, a.unsqueeze(-1)).squeeze(-1)
-    return a, logp
-
-
 class MASPTrainer:
     """MASP on one scenario: ``iteration()`` = one rollout + one update of both levels."""
 
-    distribution = "categorical"  # of the executor's actions (the drone trainer's are Gaussian)
+    distribution = None  # categorical executor actions (the drone trainer's are Gaussian)
+    nets_class = MASPNets  # the drone trainer's: DroneNets
+    obs_keys = OBS_KEYS  # what a stored step keeps of the observation
 
     def __init__(self, scenario: str, cfg: TrainConfig, seed: int = 0, overrides: dict | None = None):
         self.cfg, self.seed = cfg, int(seed)
@@ -85,12 +74,12 @@ class MASPTrainer:
                                  f"{sc.name!r} has {self.world.num_agents}")
             cfg = self.cfg = dataclasses.replace(cfg, net=dataclasses.replace(cfg.net,
                                                                               team_size=self.world.num_agents))
-        self.random_goals = cfg.net.goal_matcher == "random"
-        self.hungarian_goals = cfg.net.goal_matcher == "hungarian"
-        self.goal_free = cfg.net.goal_matcher == "none"
-        self.gm_trained = not (self.random_goals or self.hungarian_goals or self.goal_free)
+        self.gm_trained = cfg.net.goal_matcher not in ("random", "hungarian", "none")  # a Goal Matcher to train
+        if not self.gm_trained:  # an ablation's or a baseline's goals, beside MASP's
+            from .goal_sources import scripted_goals
+            self.goal_source = scripted_goals
         torch.manual_seed(self.seed)  # network initialisation
-        self.nets = (DroneNets if sc.kind == "drone" else MASPNets)(cfg.net)
+        self.nets = self.nets_class(cfg.net)
         n = self.nets
         self.gm_opt = torch.optim.Adam([*n.gm.parameters(), *n.gm_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5)
         self.cae_opt = torch.optim.Adam([*n.cae.parameters(), *n.cae_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5)
@@ -103,60 +92,72 @@ class MASPTrainer:
     @torch.inference_mode()
     def collect(self):
         """One episode in every world; returns (gm data, cae data, episode stats)."""
-        w, n, cfg, g = self.world, self.nets, self.cfg, self.generator
+        w, n, g, T = self.world, self.nets, self.generator, self.horizon
         obs = w.reset()
         gm, cae = RolloutStorage(), RolloutStorage()
-        goals, drawn_for = None, None
+        goals, self._drawn_for = None, None
         cov, col = [obs["covered"].all(-1)], []
         B, N = w.num_envs, w.num_agents
-        for t in range(self.horizon):
-            snap = {k: obs[k].clone() for k in OBS_KEYS}
-            if self.random_goals:  # "MASP w. RG": a random assignment, redrawn only when the team changes
-                if goals is None or not torch.equal(obs["alive"], drawn_for):
-                    goal_mask = ~obs["reached"] if w.scenario.varying else None
-                    goals, drawn_for = random_goals(obs["alive"], obs["landmark_pos"].shape[1], g, goal_mask), \
-                        obs["alive"].clone()
-            elif self.goal_free:  # mappo, darl1n: no goals; the executor sees every landmark
-                pass
-            elif self.hungarian_goals:
-                if t % cfg.net.global_step == 0:  # h-mappo: the Hungarian assignment every global step
-                    goal_mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True) if w.scenario.varying else None
-                    goals = hungarian_goals(obs["agent_pos"], obs["landmark_pos"], obs["alive"], goal_mask)
-            elif t % cfg.net.global_step == 0:
-                logits = n.gm_logits(obs, self.scale)
-                goals, logp, rank = sequential_sample(logits, obs["alive"], g)
-                v = n.gm_value(obs, self.scale, self.horizon)
-                goal_mask = ~obs["reached"] if w.scenario.varying else None
-                r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask,
-                                        power=2.0 if cfg.reward.gm_reference == "squared" else 1.0,
-                                        cost="bottleneck" if cfg.reward.gm_reference == "bottleneck" else "sum")
-                gm.add(**snap, actions=goals, rank=rank, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
-            perm = torch.rand(B, N, generator=g).argsort(-1)
+        for t in range(T):
+            snap = {k: obs[k].clone() for k in self.obs_keys}
+            goals = self.goal_step(t, obs, goals, snap, gm)              # 1. the Goal Matcher, every global step
+            perm = torch.rand(B, N, generator=g).argsort(-1)            # 2. a fresh random group division
             inputs = n.cae_inputs(obs, goals, perm)
-            logits, v = n.cae_forward(inputs, obs, self.horizon)
-            actions, logp = sample(logits, g)
+            out, v = n.cae_forward(inputs, obs, T)
+            actions, logp, command = self.act(out, obs)                  # the world kind's action step
             alive = obs["alive"].clone()
-            obs, info = w.step(torch.where(alive, actions, torch.zeros_like(actions)))
-            rc = cfg.reward
-            if self.goal_free:
-                r = coverage_reward(obs["agent_pos"], obs["landmark_pos"], info["agent_collisions"], alive, self.reach,
-                                    w.scenario.world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)
-            else:
-                goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand(B, N, 2))
-                r = executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach,
-                                    w.scenario.world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)
-            cae.add(**snap, pair=inputs[0], groups=inputs[1], goal_f=inputs[3], obstacle_f=inputs[4],
+            obs, info = w.step(command)
+            r = self.executor_reward(obs, goals, info, alive, t)         # 3. R_CAE after the step
+            cae.add(**snap, pair=inputs[0], groups=inputs[1], goal_f=inputs[3], extra_f=inputs[4],
                     actions=actions, logp=logp, values=v, rewards=r, mask=alive)
             cov.append(info["covered"].all(-1))
             col.append(info["collisions"])
-        self.env_steps += self.horizon * B
+        self.env_steps += T * B
         solved = torch.stack(cov, 1)
-        first = torch.where(solved, torch.arange(self.horizon + 1), self.horizon).min(1).values
+        first = torch.where(solved, torch.arange(T + 1), T).min(1).values
         stats = {"sr": float(obs["covered"].float().mean()), "steps": float(first.float().mean()),
                  "cr": float(torch.stack(col, 1).float().mean())}
+        cfg = self.cfg
         gm_data = self._advantages(gm.stacked(), self.gm_norm, cfg.ppo.gm_gamma) if self.gm_trained else None
         return gm_data, \
             self._advantages(cae.stacked(), self.cae_norm, cfg.ppo.gamma, update=cfg.run.train_executor), stats
+
+    def goal_step(self, t: int, obs: dict, goals, snap: dict, storage: RolloutStorage):
+        """The goals (B, N) for step ``t``: every ``global_step`` steps the Goal Matcher samples distinct
+        goals, and the decision is stored with its R_GM. Another goal source of ``NetConfig.goal_matcher``
+        (an ablation's or a baseline's: random, Hungarian, none) is :mod:`masp_lite.algos.goal_sources`'."""
+        if not self.gm_trained:
+            goals, self._drawn_for = self.goal_source(self.cfg.net.goal_matcher, t, obs, goals, self._drawn_for,
+                                                      self.cfg.net.global_step, self.generator,
+                                                      self.world.scenario.varying)
+            return goals
+        if t % self.cfg.net.global_step:
+            return goals
+        goal_mask = ~obs["reached"] if self.world.scenario.varying else None  # reached ones count for SR already
+        goals, logp, rank = sequential_sample(self.nets.gm_logits(obs, self.scale), obs["alive"], self.generator)
+        v = self.nets.gm_value(obs, self.scale, self.horizon)
+        r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask,
+                                power=2.0 if self.cfg.reward.gm_reference == "squared" else 1.0)
+        storage.add(**snap, actions=goals, rank=rank, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
+        return goals
+
+    def act(self, out, obs: dict):
+        """The action step: ``(actions stored, their log-probabilities, what the world steps with)``.
+
+        Particles: one of MPE's 5 actions per agent, sampled from the executor's logits (dropped
+        agents send 0). The drone trainer samples its Gaussian and turns it into motor commands."""
+        actions, logp = sample(out, self.generator)
+        return actions, logp, torch.where(obs["alive"], actions, torch.zeros_like(actions))
+
+    def executor_reward(self, obs: dict, goals, info: dict, alive, t: int) -> torch.Tensor:
+        """R_CAE (eq. 5) of step ``t``, from the observation after it; the goal-free baselines' coverage reward."""
+        rc, world_size = self.cfg.reward, self.world.scenario.world_size
+        if goals is None:
+            return coverage_reward(obs["agent_pos"], obs["landmark_pos"], info["agent_collisions"], alive, self.reach,
+                                   world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)
+        goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(obs["agent_pos"]))
+        return executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach, world_size,
+                               rc.bonus_coef, rc.distance_coef, rc.collision_coef)
 
     def _advantages(self, data, norm: ValueNorm, gamma: float, update: bool = True):
         values = norm.denormalize(data["values"])
@@ -169,13 +170,13 @@ class MASPTrainer:
 
     # ------------------------------------------------------------------ update
     def _gm_eval(self, mb):
-        obs = {k: mb[k] for k in OBS_KEYS}
+        obs = {k: mb[k] for k in self.obs_keys}
         logits = conditional_logits(self.nets.gm_logits(obs, self.scale), mb["actions"], mb["rank"], obs["alive"])
         return logits, self.nets.gm_value(obs, self.scale, self.horizon)
 
     def _cae_eval(self, mb):
-        obs = {k: mb[k] for k in OBS_KEYS}
-        inputs = (mb["pair"], mb["groups"], mb["alive"], mb["goal_f"], mb["obstacle_f"])
+        obs = {k: mb[k] for k in self.obs_keys}
+        inputs = (mb["pair"], mb["groups"], mb["alive"], mb["goal_f"], mb["extra_f"])
         return self.nets.cae_forward(inputs, obs, self.horizon)
 
     def iteration(self) -> dict[str, float]:

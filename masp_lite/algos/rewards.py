@@ -14,8 +14,7 @@ world)::
 ``D_m`` and ``D_h``: the team's total agent-to-goal distance under the picked and the
 Hungarian goals (:func:`masp_lite.algos.assignment.assignment_cost`). Dropped agents get 0.
 The paper does not give the reference's costs: ``RewardConfig.gm_reference`` chooses
-distances (default), squared distances, or the min-max assignment scored by the longest
-trip.
+distances (default) or squared distances.
 With varying teams the Hungarian reference uses the landmarks not yet reached (as
 ``h-greedy`` does).
 
@@ -39,7 +38,7 @@ from __future__ import annotations
 
 import torch
 
-from .assignment import assignment_cost, bottleneck, hungarian
+from .assignment import assignment_cost, hungarian
 
 __all__ = ["coverage_reward", "goal_matcher_reward", "executor_reward", "complete_bonus", "repeat_counts"]
 
@@ -51,42 +50,23 @@ def repeat_counts(goals: torch.Tensor, alive: torch.Tensor, num_goals: int) -> t
     return torch.gather(per_goal, 1, goals.clamp(min=0)) - alive.long()
 
 
-def _cost(agent_pos, goal_pos, assignment, power, cost):
-    """The team's cost of an assignment (B,): total ``distance ** power``, or the longest trip."""
-    if cost == "sum":
-        return assignment_cost(agent_pos, goal_pos, assignment, power)
-    target = torch.gather(goal_pos, 1, assignment.clamp(min=0).unsqueeze(-1).expand_as(agent_pos))
-    trips = (target - agent_pos).norm(dim=-1) * (assignment >= 0)
-    return trips.max(dim=1).values.to(agent_pos.dtype)
-
-
 def goal_matcher_reward(agent_pos, goal_pos, goals, alive, goal_mask=None, reference=None,
-                        power: float = 1.0, cost: str = "sum") -> torch.Tensor:
+                        power: float = 1.0) -> torch.Tensor:
     """Equation 1 for every agent of every world: a float tensor (B, N).
 
     ``goals`` (B, N) long: the Goal Matcher's picks; ``alive`` (B, N) bool; ``goal_mask``
     (B, M) bool: goals the reference may use (``None``: all); ``reference``: a precomputed
-    reference assignment (B, N) (computed here when ``None``). ``cost="sum"``: the
-    reference is the Hungarian assignment minimising the total of ``distance ** power``,
-    and ``D_m``, ``D_h`` are totals of that cost (power 1: total distance, the paper's
-    reading); ``cost="bottleneck"``: the reference is the min-max assignment
-    (:func:`~masp_lite.algos.assignment.bottleneck`) and ``D_m``, ``D_h`` are the longest
-    trips (``RewardConfig.gm_reference``).
+    reference assignment (B, N) (computed here when ``None``): the Hungarian assignment
+    minimising the total of ``distance ** power``; ``D_m``, ``D_h`` are totals of that cost
+    (power 1: total distance, the paper's reading; 2: ``RewardConfig.gm_reference="squared"``).
     """
     if goals.shape != alive.shape or goals.dtype != torch.long:
         raise ValueError(f"goals: expected a long tensor of shape {tuple(alive.shape)}, got "
                          f"{tuple(goals.shape)} {goals.dtype}")
-    if cost not in ("sum", "bottleneck"):
-        raise ValueError(f"cost: expected 'sum' or 'bottleneck', got {cost!r}")
-    if reference is not None:
-        h = reference
-    elif cost == "bottleneck":
-        h = bottleneck(agent_pos, goal_pos, alive, goal_mask)
-    else:
-        h = hungarian(agent_pos, goal_pos, alive, goal_mask, power)
+    h = reference if reference is not None else hungarian(agent_pos, goal_pos, alive, goal_mask, power)
     picked = torch.where(alive, goals, torch.full_like(goals, -1))
-    d_m = _cost(agent_pos, goal_pos, picked, power, cost)                # (B,)
-    d_h = _cost(agent_pos, goal_pos, h, power, cost)
+    d_m = assignment_cost(agent_pos, goal_pos, picked, power)                # (B,)
+    d_h = assignment_cost(agent_pos, goal_pos, h, power)
     n_alive = alive.sum(1, keepdim=True).clamp(min=1).to(agent_pos.dtype)
     n_rep = repeat_counts(goals, alive, goal_pos.shape[1]).to(agent_pos.dtype)
     ratio = (d_h / d_m.clamp(min=1e-9)).unsqueeze(1).expand_as(n_rep)

@@ -20,7 +20,7 @@ import time
 
 import torch
 
-from ..evaluation.paper import PAPER
+from ..reproduction.paper import PAPER
 from . import load_average, write_json
 
 __all__ = ["add_arguments", "run", "decision_time", "PAPER_MS"]

@@ -29,8 +29,8 @@ import numpy as np
 import torch
 
 from ..envs import get_scenario, make
-from ..evaluation.paper import PAPER
 from ..policies import get_factory, make_policy, method_options
+from ..reproduction.paper import PAPER
 from . import load_average, write_json
 
 __all__ = ["add_arguments", "run", "step_times", "collision_split", "PAPER_MS"]

@@ -26,15 +26,15 @@ import torch
 from ..config import FROM_SCRATCH, TrainConfig
 from ..envs import get_scenario
 from ..nets.encoders import plain_autograd
-from ..policies.drone_masp import DRONE_METHODS as _DRONE_ACTIONS
-from ..policies.masp import BASELINES, METHOD_SETTINGS
+from ..policies import learned_methods
 from . import load_average, write_json
 
 __all__ = ["add_arguments", "run", "throughput", "METHODS", "DRONE_METHODS"]
 
-METHODS = {m: METHOD_SETTINGS[m] for m in ("masp", *BASELINES)}
+METHODS = {m: {**e["nets"], **e.get("train", {})} for m, e in learned_methods("particle").items()
+           if m == "masp" or e.get("group") == "baseline"}
 """Measured methods on particle worlds (MASP and the RL baselines) -> the training settings that make each one."""
-DRONE_METHODS = {m: {"action": a} for m, a in _DRONE_ACTIONS.items()}
+DRONE_METHODS = {m: dict(e["nets"]) for m, e in learned_methods("drone").items()}
 """Measured methods on drone worlds -> their settings."""
 
 

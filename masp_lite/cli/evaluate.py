@@ -3,7 +3,7 @@
 Runs :func:`masp_lite.evaluation.evaluate` and prints the record as the paper's table.
 ``--set`` takes scenario overrides (``num_agents=100``, ``team_after=none``) and the
 method's options (``power=2``), each value parsed by the type of what it sets
-(:func:`masp_lite.config.parse_sets`, the parser every command uses). The table shows them
+(:func:`masp_lite.parsing.parse_sets`, the parser every command uses). The table shows them
 beside the method and scenario. ``--json PATH`` is checked to be writable before the run, so
 a bad path fails at once rather than after the whole evaluation.
 """
@@ -13,9 +13,9 @@ import json
 import os
 from pathlib import Path
 
-from ..config import field_types, parse_sets
-from ..envs import OVERRIDES, SCENARIOS, Scenario
+from ..envs import OVERRIDES, SCENARIOS
 from ..evaluation import MAX_ENVS, evaluate, format_table
+from ..parsing import parse_sets
 from ..policies import get_factory, method_names, method_options, option_types
 
 __all__ = ["add_arguments", "run", "split_sets", "override_types", "check_writable", "write_record", "EXAMPLES"]
@@ -29,16 +29,23 @@ EXAMPLES = [
 
 
 def override_types() -> dict[str, object]:
-    """``{override: type}`` of the scenario overrides (from :class:`~masp_lite.envs.Scenario`'s fields)."""
-    types = field_types(Scenario)
-    return {k: types[k] for k in OVERRIDES}
+    """``{override: type}`` of the scenario overrides (:data:`~masp_lite.envs.OVERRIDES`: ``Scenario``'s fields)."""
+    return dict(OVERRIDES)
 
 
-def split_sets(items, method: str) -> tuple[dict, dict]:
-    """``KEY=VALUE`` strings -> (scenario overrides, method options); a key that is neither fails."""
-    factory = get_factory(method)
+def split_sets(items, method: str, scenario: str | None = None, checkpoint_flag: bool = False) -> tuple[dict, dict]:
+    """``KEY=VALUE`` strings -> (scenario overrides, method options); a key that is neither fails.
+
+    The options are those of the method's policy for ``scenario``'s world kind. With ``checkpoint_flag``
+    (``evaluate``, whose ``--checkpoint PATH`` is a checkpoint's one entrance) ``--set checkpoint=`` is refused."""
+    kind = None if scenario is None or scenario not in SCENARIOS else SCENARIOS[scenario].kind
+    factory = get_factory(method, kind)
     _, var_kw = method_options(factory)
     options = option_types(factory)
+    if checkpoint_flag:
+        if any(str(item).partition("=")[0].strip() == "checkpoint" for item in items or []):
+            raise ValueError("--set checkpoint: expected --checkpoint PATH (a checkpoint's one entrance)")
+        options.pop("checkpoint", None)
     targets = {"scenario override": override_types(), f"option of method {method!r}": options}
     if var_kw:  # the method checks the names of its **options itself
         targets[f"option of method {method!r}"] = _Any(options)
@@ -134,7 +141,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    overrides, options = split_sets(args.set, args.method)
+    overrides, options = split_sets(args.set, args.method, args.scenario, checkpoint_flag=True)
     out = check_writable(args.json) if args.json is not None else None
     record = evaluate(args.method, args.scenario, episodes=args.episodes, seeds=args.seeds,
                       overrides=overrides, method_options=options, checkpoint=args.checkpoint,

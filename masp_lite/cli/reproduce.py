@@ -1,6 +1,6 @@
 """``python -m masp_lite reproduce [--table NAME] [--format F] [--evaluate | --quick | --train] [--records DIR]``.
 
-Prints the paper's tables with ours beside the paper's (:mod:`masp_lite.evaluation.reproduce`),
+Prints the paper's tables with ours beside the paper's (:mod:`masp_lite.reproduction.reproduce`),
 then the paper's claims checked on the same records (``--table claims``, ``drone-claims``,
 ``ablation-claims``): from the records in ``results/`` (seconds), or ``--evaluate`` — every
 registered method of the table with its shipped weights, 3 seeds × 100 episodes (about 30
@@ -8,7 +8,7 @@ minutes for "mpe" on one core, most of it the planners on mpe-50) — or ``--qui
 4 episodes (60 s for "mpe" on one core, 6.6 min for every table), for a first look and for tests. An
 evaluation that several tables read runs once.
 
-``--train`` retrains every kept training run from random networks (:mod:`masp_lite.plan`:
+``--train`` retrains every kept training run from random networks (:mod:`masp_lite.reproduction.plan`:
 the plan is read from the kept histories; ``--dry-run`` prints it with each run's env
 steps and wall-clock here), ships the weights and re-makes the records made from them in
 place, then prints the tables. Run it again after a stop: finished stages are skipped, a
@@ -22,8 +22,9 @@ import os
 import sys
 from pathlib import Path
 
-from ..evaluation.reproduce import RESULTS_DIR, TABLES, build, evaluate_records, load_records, render
-from ..plan import describe, load_plan, read_plan, run_plan
+from ..reproduction import REPO_ROOT, RESULTS_DIR
+from ..reproduction.plan import describe, load_plan, read_plan, run_plan
+from ..reproduction.reproduce import TABLES, build, evaluate_records, load_records, render
 
 __all__ = ["add_arguments", "run", "EXAMPLES"]
 
@@ -55,10 +56,10 @@ def add_arguments(parser) -> None:
     train.add_argument("--dry-run", action="store_true", help="print the plan and stop")
     train.add_argument("--only", action="append", default=None, metavar="TEXT",
                        help="keep the runs whose name contains TEXT (repeatable), e.g. mappo/ or seed0")
-    train.add_argument("--plan", default=None, help="a plan file (JSON, as masp_lite.plan.save_plan writes) "
-                       "instead of the kept histories")
+    train.add_argument("--plan", default=None, help="a plan file (JSON, as masp_lite.reproduction.plan.save_plan "
+                       "writes) instead of the kept histories")
     train.add_argument("--root", default=None, help="the checkout whose runs/, results/ and weights the plan "
-                       f"writes (default {RESULTS_DIR.parent})")
+                       f"writes (default {REPO_ROOT})")
     train.add_argument("--in-turn", action="store_true", help="run the runs one after the other, without Ray")
     train.add_argument("--address", default=None, help="a running Ray cluster (default: a local Ray on this "
                        "machine's cores)")
@@ -67,7 +68,7 @@ def add_arguments(parser) -> None:
 def _train(args) -> int:
     if args.in_turn and args.address:
         raise ValueError("--in-turn and --address: expected one of them (in turn here, or on a Ray cluster)")
-    root = Path(args.root) if args.root else RESULTS_DIR.parent
+    root = Path(args.root) if args.root else REPO_ROOT
     runs, skipped = (load_plan(args.plan), []) if args.plan else read_plan(root)
     if args.only:
         runs = [r for r in runs if any(t in r.name for t in args.only)]
@@ -95,7 +96,7 @@ def run(args) -> int:
         status = _train(args)
         if status or args.dry_run or args.plan:
             return status
-        args.records = str((Path(args.root) if args.root else RESULTS_DIR.parent) / "results")
+        args.records = str((Path(args.root) if args.root else REPO_ROOT) / RESULTS_DIR.relative_to(REPO_ROOT))
     elif args.dry_run or args.only or args.plan or args.root or args.in_turn or args.address:
         raise ValueError("--dry-run, --only, --plan, --root, --in-turn and --address go with --train")
     names = args.table or list(TABLES)

@@ -5,7 +5,7 @@ Trains MASP, an ablation or an RL baseline (``--method``, settings from
 exact resume, manifest).
 ``--set`` takes any training setting (:class:`masp_lite.config.TrainConfig`'s fields, e.g.
 ``--set updates=300 --set lr=2e-4``) or scenario override (``--set num_obstacles=40``),
-parsed by :func:`masp_lite.config.parse_sets` as in every command. ``--init PATH`` starts
+parsed by :func:`masp_lite.parsing.parse_sets` as in every command. ``--init PATH`` starts
 from a weights file (fine-tuning).
 
 The progress bar shows the training rollouts (sampled actions) and the last periodic

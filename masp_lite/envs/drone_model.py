@@ -50,7 +50,7 @@ import mujoco
 import numpy as np
 import torch
 
-__all__ = ["HUMMINGBIRD", "ARM_LENGTH", "ROTOR_RADIUS", "COLLISION_RADIUS", "CONTROL_DT",
+__all__ = ["DRONE_SPEED", "HUMMINGBIRD", "ARM_LENGTH", "ROTOR_RADIUS", "COLLISION_RADIUS", "CONTROL_DT",
            "PHYSICS_DT", "SUBSTEPS", "MAX_THRUST", "HOVER_COMMAND", "build_xml", "build_model",
            "save_xml", "rotor_positions", "GRAVITY", "quat_to_matrix"]
 
@@ -72,6 +72,9 @@ SUBSTEPS = 4
 PHYSICS_DT = CONTROL_DT / SUBSTEPS
 MAX_THRUST = HUMMINGBIRD["force_constant"] * HUMMINGBIRD["max_rotor_speed"] ** 2
 """Thrust of one rotor at full throttle, N (≈ 6.0)."""
+DRONE_SPEED = 4.0
+"""m/s: the drones' speed scale. Networks divide velocities by it, and a ``velocity`` action of 1
+asks for it (:func:`masp_lite.planners.geometric.motor_commands`)."""
 HOVER_COMMAND = 2 * HUMMINGBIRD["mass"] * GRAVITY / (4 * MAX_THRUST) - 1
 """Command that holds every rotor at a quarter of the weight in steady state (≈ −0.41)."""
 

@@ -15,8 +15,9 @@ Physics per step (``mpe2``'s ``World.step`` today; see the course, chapter 01):
    ``vel += force / mass * dt``.
 
 The original OpenAI MPE updated the velocity before the position; ``mpe2`` changed the
-order to match the MPE paper's dynamics, and so does this world. The scenario override
-``integration="velocity_first"`` restores the original order, for experiments only.
+order. Every ``mpe-*`` preset uses the original order (``integration="velocity_first"``, the
+world of the code the paper's descends from, :data:`~masp_lite.envs.scenarios.PAPER_WORLD`);
+``integration="mpe2"`` moves exactly as PettingZoo's mpe2 (tested against it).
 
 Bodies are circles: agents (``agent_radius``), immovable obstacles that collide with
 agents, and landmarks that collide with nothing. When the team shrinks (``team_after``),

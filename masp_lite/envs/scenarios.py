@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import typing
 from dataclasses import dataclass
 
 __all__ = ["Scenario", "SCENARIOS", "OVERRIDES", "get_scenario", "scenario_names", "PAPER_WORLD", "MPE2_WORLD",
@@ -144,12 +145,11 @@ def world_name(world: dict) -> str:
     """A world definition in words, e.g. ``"integration=mpe2, landmark_spawn=whole"``."""
     return ", ".join(f"{k}={v}" for k, v in sorted(world.items())) or "the drone world"
 
-#: Names accepted as overrides, with the type each value is converted to.
-OVERRIDES: dict[str, type] = {
-    "num_agents": int, "num_obstacles": int, "world_size": float, "horizon": int,
-    "team_after": int, "change_step": int, "agent_radius": float,
-    "landmark_radius": float, "obstacle_radius": float, "integration": str, "landmark_spawn": str,
-}
+#: Names accepted as overrides — every field of :class:`Scenario` but ``name`` and ``kind`` — with their
+#: annotated types (``int | None`` for the team change): the one table ``--set`` converts values by and
+#: :func:`get_scenario` checks them by.
+OVERRIDES: dict[str, object] = {f.name: typing.get_type_hints(Scenario)[f.name] for f in dataclasses.fields(Scenario)
+                                if f.name not in ("name", "kind")}
 
 
 def scenario_names(kind: str | None = None) -> list[str]:
@@ -174,10 +174,11 @@ def get_scenario(name: str | Scenario, **overrides) -> Scenario:
         raise ValueError(f"unknown override(s) {unknown}; valid overrides are {sorted(OVERRIDES)}")
     values = {}
     for key, value in overrides.items():
-        if value is None and key in ("team_after", "change_step"):
+        args = typing.get_args(OVERRIDES[key])  # (int, NoneType) for ``int | None``
+        if value is None and type(None) in args:
             values[key] = None
             continue
-        cast = OVERRIDES[key]
+        cast = next((a for a in args if a is not type(None)), OVERRIDES[key])
         try:
             if isinstance(value, bool) or (cast is int and isinstance(value, float) and not value.is_integer()):
                 raise TypeError

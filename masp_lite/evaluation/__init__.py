@@ -1,16 +1,14 @@
-"""Metrics, rollouts, ``evaluate`` and the paper's tables — how every number is measured.
+"""Metrics, rollouts and ``evaluate`` — how every number is measured (nothing here knows the repository).
 
 * :mod:`.metrics` — SR, Steps, CR (``success_rate``, ``steps``, ``collision_rate``) on an
   :class:`EpisodeLog`, as the paper's section "Metrics" defines them;
 * :mod:`.rollouts` — ``rollout`` (episodes of a policy, decision time only) and
   ``contact_breakdown``;
 * :mod:`.evaluate` — ``evaluate``: a method over seeds × episodes, the JSON record;
-* :mod:`.tables` — records as the paper's tables (text, markdown, LaTeX);
-* :mod:`.claims` — which of two records is better, metric by metric, and the paper's
-  MASP numbers to compare with (``verdict``, ``against_paper``, ``PAPER_MASP``);
-* :mod:`.paper` — the paper's numbers (``PAPER``), typed in once;
-* :mod:`.reproduce` — the paper's tables and its MPE claims from the committed records
-  (``python -m masp_lite reproduce``).
+* :mod:`.tables` — records as tables (text, markdown, LaTeX).
+
+The paper's numbers, its tables from the committed records and its claims are the
+reproduction room's (:mod:`masp_lite.reproduction`).
 """
 from .evaluate import MAX_ENVS, evaluate
 from .metrics import EpisodeLog, collision_rate, reached_target, steps, success_rate

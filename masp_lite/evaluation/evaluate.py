@@ -15,7 +15,7 @@ import math
 import numpy as np
 import torch
 
-from ..envs import OVERRIDES, get_scenario, make
+from ..envs import get_scenario, make
 from ..policies import build_policy, get_factory
 from ..policies import method_options as method_options_of
 from ..weights import sha256
@@ -93,17 +93,18 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     """
     overrides = dict(overrides or {})
     options = dict(method_options or {})
-    factory = get_factory(method)
+    kind = get_scenario(scenario, **overrides).kind  # the overrides are checked here, once
+    factory = get_factory(method, kind)
     named, var_kw = method_options_of(factory)
-    bad = sorted(k for k in overrides if k not in OVERRIDES)
-    if bad:
-        raise ValueError(f"unknown scenario override(s) {bad}; expected one of {sorted(OVERRIDES)}")
     bad = sorted(k for k in options if k not in named and not var_kw)
     if bad:
         raise ValueError(f"method {method!r}: unknown option(s) {bad}; expected one of {sorted(named)}")
     if checkpoint is not None:
         if "checkpoint" not in named and not var_kw:
             raise ValueError(f"method {method!r} takes no checkpoint; expected a learned method")
+        if options.get("checkpoint", str(checkpoint)) != str(checkpoint):
+            raise ValueError(f"checkpoint {str(checkpoint)!r} and method option checkpoint="
+                             f"{options['checkpoint']!r}: expected one checkpoint")
         options["checkpoint"] = str(checkpoint)
     seeds = list(seeds) if isinstance(seeds, (list, tuple, range)) else seeds
     if not isinstance(seeds, list) or not seeds or not all(isinstance(s, (int, np.integer)) and

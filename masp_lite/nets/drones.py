@@ -18,7 +18,7 @@ The design is the particle world's (:mod:`masp_lite.nets.masp`), node for node:
     head's output, whose last layer starts near 0, so an untrained executor hovers;
   - ``velocity`` (the variant ``masp-velocity``): a 3-D velocity set-point in units of
     ``DRONE_SPEED``, flown by the geometric controller
-    (:func:`masp_lite.algos.drone_trainer.motor_commands`).
+    (:func:`masp_lite.planners.geometric.motor_commands`).
 
   A sample is clipped to [−1, 1] before it reaches the world or the controller; the policy
   is trained on the log-probability of the unclipped sample (the clip belongs to the world),
@@ -39,7 +39,7 @@ import torch
 from torch import nn
 
 from ..config import NetConfig
-from ..envs.drone_model import HOVER_COMMAND, quat_to_matrix
+from ..envs.drone_model import DRONE_SPEED, HOVER_COMMAND, quat_to_matrix
 from ..envs.drones import FLIGHT_HEIGHT
 from .encoders import mlp
 from .fusion import GroupInformationFusion, group_division
@@ -56,8 +56,6 @@ from .masp import (
 __all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "gaussian_log_prob", "gaussian_entropy",
            "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
 
-DRONE_SPEED = 4.0
-"""m/s: velocities are divided by it, and a ``velocity`` action of 1 asks for it."""
 DRONE_SENSE = 2.0
 """Metres at which neighbour vectors are clipped."""
 ANGVEL_SCALE = 10.0

@@ -39,8 +39,6 @@ from torch import nn
 
 from ..config import NetConfig
 from ..envs.particle import NUM_ACTIONS
-from .ablations import FusionMLP, GoalMatcherMLP
-from .baselines import AttentionPool, AttentionSubgraph, NearestMLP, RadiusMean
 from .encoders import CrossEncoder, SelfEncoder, mlp
 from .fusion import GroupInformationFusion, group_division
 
@@ -263,14 +261,12 @@ class MASPNets(nn.Module):
             raise ValueError("MASPNets: an mlp variant needs team_size (the agents it is built for), got "
                              f"{c.team_size}")
         # "random" and "hungarian" keep a (never trained, never used) Goal Matcher: every weights file has one layout
-        self.gm = GoalMatcherMLP(c.width, c.team_size) if c.goal_matcher == "mlp" else GoalMatcher(c.width)
+        variant = c.goal_matcher in ("mlp", "none") or c.executor != "graph"
+        if variant:  # an ablation's or baseline's parts, beside MASP's (built in this order: the same initial weights)
+            from . import variants
+        self.gm = variants.goal_matcher(c) if c.goal_matcher == "mlp" else GoalMatcher(c.width)
         self.gm_critic = GoalMatcherCritic(c.width)
-        fusion = {"graph": lambda: None, "mlp": lambda: FusionMLP(PAIR_FEATURES, c.width, c.team_size),
-                  "nearest": lambda: NearestMLP(PAIR_FEATURES, c.width, c.neighbours_seen),
-                  "subgraph": lambda: AttentionSubgraph(PAIR_FEATURES, c.width, c.neighbours_seen),
-                  "attention": lambda: AttentionPool(PAIR_FEATURES, c.width),
-                  "radius": lambda: RadiusMean(PAIR_FEATURES, c.width)}[c.executor]()
-        landmarks = AttentionPool(LANDMARK_FEATURES, c.width) if c.goal_matcher == "none" else None  # no goals
+        fusion, landmarks = variants.executor_parts(c, PAIR_FEATURES, LANDMARK_FEATURES) if variant else (None, None)
         self.cae = CoordinatedActionExecutor(c.width, c.gcn_layers, c.obstacles_seen, fusion, landmarks)
         self.cae_critic = ExecutorCritic(c.width)
 

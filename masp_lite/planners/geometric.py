@@ -29,9 +29,10 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..envs.drone_model import GRAVITY, HUMMINGBIRD, MAX_THRUST, quat_to_matrix
+from ..envs.drone_model import DRONE_SPEED, GRAVITY, HUMMINGBIRD, MAX_THRUST, quat_to_matrix
 
-__all__ = ["allocation_matrix", "mixing_matrix", "MIXER", "quat_to_matrix", "position_loop", "LeeController",
+__all__ = ["motor_commands", "velocity_controller", "allocation_matrix", "mixing_matrix", "MIXER", "quat_to_matrix",
+           "position_loop", "LeeController",
            "thrusts_to_commands"]
 
 
@@ -137,3 +138,24 @@ class LeeController:
         thrust = HUMMINGBIRD["mass"] * (acc * R[..., :, 2]).sum(-1, keepdim=True)
         rotor = torch.cat([thrust, moments], -1) @ self.mixer.T
         return thrusts_to_commands(rotor).to(dtype)
+
+
+def velocity_controller() -> LeeController:
+    """The geometric controller that flies ``velocity`` actions (velocity gain 4, speed capped at ``DRONE_SPEED``)."""
+    return LeeController(kv=4.0, max_speed=DRONE_SPEED)
+
+
+def motor_commands(actions: torch.Tensor, obs: dict, controller: LeeController | None = None) -> torch.Tensor:
+    """The world's motor commands (B, N, 4) for MASP's drone executor's actions, clipped to [−1, 1] first.
+
+    Without ``controller`` (``action="throttle"``) the clipped actions are the commands; with one
+    (``action="velocity"``, :func:`velocity_controller`) the clipped action × ``DRONE_SPEED`` is the
+    velocity set-point the controller flies from the drone's own position. The drone policy and the
+    drone trainer both act through it.
+    """
+    a = actions.clamp(-1.0, 1.0)
+    if controller is None:
+        return a
+    pos = obs["agent_pos"]
+    return controller(pos, obs["agent_vel"], obs["agent_quat"], obs["agent_angvel"], target_pos=pos,
+                      target_vel=a * DRONE_SPEED)

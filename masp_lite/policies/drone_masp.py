@@ -1,73 +1,64 @@
 """MASP on drones: the trained Goal Matcher and Gaussian executor flying the quadrotor world.
 
-``masp`` hands a drone world to :class:`DroneMASPPolicy` (weights with ``action="throttle"``,
-the paper's motor commands); ``masp-velocity`` is the variant whose executor asks the
-geometric controller for a velocity (weights with ``action="velocity"``), kept apart so a
-record never mixes them. Every global step the Goal Matcher gives the flying drones
-distinct goals (the most likely such assignment, :func:`~masp_lite.nets.decoding.joint_argmax`),
-or the Hungarian assignment with weights trained with ``goal_matcher="hungarian"``; every
-step the executor's action is its Gaussian's mean (``deterministic``, the default) or a
-sample, clipped to [−1, 1] (:mod:`masp_lite.nets.drones`).
+The method table (:data:`masp_lite.policies.METHODS`) gives ``masp`` on a drone world this
+class (weights with ``action="throttle"``, the paper's motor commands); ``masp-velocity`` is
+the variant whose executor asks the geometric controller for a velocity (weights with
+``action="velocity"``), kept apart so a record never mixes them. Every global step the Goal
+Matcher gives the flying drones distinct goals (the most likely such assignment,
+:func:`~masp_lite.nets.decoding.joint_argmax`), or the Hungarian assignment with weights
+trained with ``goal_matcher="hungarian"``; every step the executor's action is its
+Gaussian's mean (``deterministic``, the default) or a sample, clipped to [−1, 1]
+(:mod:`masp_lite.nets.drones`).
 """
 from __future__ import annotations
-
-from pathlib import Path
 
 import torch
 
 from ..algos.assignment import hungarian_goals
-from ..algos.drone_trainer import motor_commands, velocity_controller
 from ..nets.decoding import joint_argmax
-from ..weights import KEPT_DIR, base_scenario, load_weights
+from ..planners.geometric import motor_commands, velocity_controller
+from ..weights import load_weights, method_checkpoint
+from . import learned_methods
 
-__all__ = ["DroneMASPPolicy", "DroneMASPVelocity", "DRONE_METHODS", "kept_checkpoint"]
+__all__ = ["DroneMASPPolicy", "DRONE_METHODS"]
 
-#: The learned drone methods -> their executor's ``NetConfig.action``.
-DRONE_METHODS = {"masp": "throttle", "masp-velocity": "velocity"}
-
-
-def kept_checkpoint(method: str, scenario) -> Path:
-    """Where a source checkout keeps the seed-0 drone weights of a learned variant that is not shipped."""
-    return KEPT_DIR / method / f"{base_scenario(scenario)}-seed0.pt"
+_LEARNED = learned_methods("drone")
+#: A view of the method table: the learned drone methods -> their executor's ``NetConfig.action``.
+DRONE_METHODS = {m: e["nets"]["action"] for m, e in _LEARNED.items()}
 
 
 class DroneMASPPolicy:
-    """Trained MASP for drone worlds (method ``masp``; the networks' ``action`` is ``ACTION``).
+    """Trained MASP for drone worlds (``method`` ``masp``, or ``masp-velocity``: the networks' ``action``
+    is the table's).
 
-    ``checkpoint``: a weights file (default: the shipped ones for ``masp``, the kept seed-0
-    weights ``results/training/METHOD/drone-N-seed0.pt`` of a source checkout for ``masp-velocity``).
+    ``checkpoint``: a weights file (default: the shipped ones for ``masp``, the packaged seed-0
+    weights for ``masp-velocity``, :func:`masp_lite.weights.method_checkpoint`).
     ``seed`` seeds the group division and, with ``deterministic=False``, the samples;
     ``global_step`` overrides the weights' Goal Matcher period.
     """
 
-    METHOD, ACTION = "masp", "throttle"
-
     def __init__(self, world, checkpoint: str | None = None, seed: int = 0, global_step: int | None = None,
-                 deterministic: bool = True, any_scenario: bool = False):
+                 deterministic: bool = True, any_scenario: bool = False, method: str = "masp"):
+        if method not in DRONE_METHODS:
+            raise ValueError(f"method: expected one of {sorted(DRONE_METHODS)}, got {method!r}")
         if getattr(world.scenario, "kind", None) != "drone":
             raise ValueError(f"{type(self).__name__}: expected a drone world (drone-* scenario)")
-        if checkpoint is None:
-            checkpoint = self.kept(world.scenario)
-        nets, meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
-        if nets.config.action != self.ACTION:
-            raise ValueError(f"{self.METHOD}: the checkpoint's executor outputs {nets.config.action!r} actions, "
-                             f"expected {self.ACTION!r}"
+        self.method, action, weights = method, DRONE_METHODS[method], _LEARNED[method]["weights"]
+        if isinstance(checkpoint, torch.nn.Module):  # networks in memory (:meth:`from_nets`): taken as they are
+            nets, meta, action = checkpoint, {}, checkpoint.config.action
+        else:
+            if checkpoint is None and weights != "shipped":
+                checkpoint = method_checkpoint(method, world.scenario, weights)
+            nets, meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
+        if nets.config.action != action:
+            raise ValueError(f"{method}: the checkpoint's executor outputs {nets.config.action!r} actions, "
+                             f"expected {action!r}"
                              + ("; use --method masp-velocity" if nets.config.action == "velocity" else
                                 "; use --method masp" if nets.config.action == "throttle" else ""))
         gs = nets.arch["global_step"] if global_step is None else global_step
         if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
         self._setup(world, nets, meta, gs, seed, deterministic)
-
-    def kept(self, scenario):
-        """Default weights: the shipped ones for ``masp`` (None), the kept seed 0 for the others."""
-        if self.METHOD == "masp":
-            return None
-        path = kept_checkpoint(self.METHOD, scenario)
-        if not path.exists():
-            raise ValueError(f"{self.METHOD}: no weights given and none kept for {scenario.name!r} (expected "
-                             f"{path.relative_to(KEPT_DIR.parents[1])} of a source checkout); pass checkpoint=PATH")
-        return path
 
     def _setup(self, world, nets, meta, global_step, seed, deterministic):
         self.world, self.nets, self.meta = world, nets.eval(), meta
@@ -80,9 +71,8 @@ class DroneMASPPolicy:
     @classmethod
     def from_nets(cls, world, nets, seed: int = 0, deterministic: bool = True) -> "DroneMASPPolicy":
         """A policy around networks in memory (training's periodic evaluation)."""
-        self = cls.__new__(cls)
-        self._setup(world, nets, {}, nets.arch["global_step"], seed, deterministic)
-        return self
+        return cls(world, checkpoint=nets, seed=seed, deterministic=deterministic,
+                   method=next(m for m, a in DRONE_METHODS.items() if a == nets.config.action))
 
     def reset(self, obs) -> None:
         self.goals = None
@@ -106,9 +96,3 @@ class DroneMASPPolicy:
         a = mean if self.deterministic else \
             mean + log_std.exp() * torch.randn(mean.shape, generator=self.generator, dtype=mean.dtype)
         return motor_commands(a, obs, self.controller)
-
-
-class DroneMASPVelocity(DroneMASPPolicy):
-    """``masp-velocity``: MASP whose executor asks the geometric controller for a velocity set-point."""
-
-    METHOD, ACTION = "masp-velocity", "velocity"

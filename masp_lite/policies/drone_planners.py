@@ -6,10 +6,10 @@ The paper's planning baselines (section "Baselines") in its quadrotor world (sec
 :class:`~masp_lite.planners.geometric.LeeController` in place of MPE's action picker:
 
 * **Goal assignment, every global step** (3 environment steps): the same
-  :class:`~masp_lite.algos.assignment.TeamAssignment` as the particle planners, on 3-D
+  :class:`~masp_lite.algos.team.TeamAssignment` as the particle planners, on 3-D
   distances — Hungarian over all landmarks for a fixed team, a random subset of the
   unreached landmarks for a varying one (``team_protocol`` as there); ``h-bottleneck``
-  takes the min–max assignment instead (:func:`~masp_lite.algos.assignment.bottleneck`,
+  takes the min–max assignment instead (:func:`~masp_lite.algos.team.bottleneck`,
   re-solved every global step, as its particle version). A drone left without a goal
   holds the point where it was at that global step.
 * **Planning in the horizontal plane, at each drone's landmark height.** Every drone heads
@@ -53,7 +53,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..algos.assignment import TeamAssignment
+from ..algos.team import TeamAssignment
 from ..envs.drone_model import COLLISION_RADIUS
 from ..planners.controllers import GLOBAL_STEP, arrive_velocity, pad_paths, track_path
 from ..planners.geometric import LeeController
@@ -206,7 +206,7 @@ class DronePlanner:
 class DroneBottleneck(DronePlanner):
     """``h-bottleneck`` on drones: min–max goals every ``global_step`` steps, straight flights.
 
-    The longest trip as short as possible (:func:`~masp_lite.algos.assignment.bottleneck`),
+    The longest trip as short as possible (:func:`~masp_lite.algos.team.bottleneck`),
     re-solved every global step; shrunk teams re-solve over the unreached landmarks
     (``team_protocol="resolve"``, h-greedy's). The flight is the planners' straight one
     (:meth:`~DronePlanner.straight`, inside the fence), with no avoidance.

@@ -7,15 +7,15 @@ goal per agent (:mod:`masp_lite.nets.decoding`); every step the executor acts to
 with a fresh random group division, as in training.
 
 The paper's ablations and its goal-based RL baselines are the same policy around weights
-of another :class:`~masp_lite.config.NetConfig` (:data:`VARIANTS`): ``masp-rg`` (random
+of another :class:`~masp_lite.config.NetConfig` (``method=``; the method table,
+:data:`masp_lite.policies.METHODS`, gives each one's settings): ``masp-rg`` (random
 goals), ``gm-mlp`` and ``cae-mlp`` (an MLP instead of a graph, for one team size);
 ``h-mappo`` (Hungarian goals, an executor over the nearest agents), ``htamp`` (MLPs at both
 levels, flat observations), ``mage-x`` (goals once, at the start, by an attention graph
 network; an executor on an attention-selected subgraph), and the goal-free ``mappo``
-(attention over all agents and landmarks) and ``darl1n`` (one-hop neighbourhoods). Their weights are the kept training
-seeds ``results/training/METHOD/PRESET-seedK.pt`` of a source checkout (seed 0 unless
-``checkpoint`` says otherwise, :func:`kept_weights`); each method refuses another's weights,
-so a record never names the wrong method.
+(attention over all agents and landmarks) and ``darl1n`` (one-hop neighbourhoods). Their default
+weights are their training seed 0, packaged (:func:`masp_lite.weights.method_checkpoint`); each
+method refuses another's weights, so a record never names the wrong method.
 """
 from __future__ import annotations
 
@@ -24,34 +24,26 @@ import torch
 from ..algos.assignment import hungarian_goals
 from ..nets.decoding import DECODERS, joint_argmax, random_goals, sequential_sample
 from ..nets.masp import MASPNets
-from ..weights import KEPT_DIR, load_weights
+from ..weights import load_weights, method_checkpoint
+from . import learned_methods
 
-__all__ = ["MASPPolicy", "ABLATIONS", "BASELINES", "VARIANTS", "METHOD_SETTINGS", "kept_weights", "masp_rg", "gm_mlp",
-           "cae_mlp", "h_mappo", "htamp", "mage_x", "mappo", "darl1n"]
+__all__ = ["MASPPolicy", "ABLATIONS", "BASELINES", "VARIANTS", "METHOD_SETTINGS"]
 
-#: The paper's ablations: method name -> the NetConfig settings its weights must have.
-ABLATIONS = {"masp-rg": {"goal_matcher": "random", "executor": "graph"},
-             "gm-mlp": {"goal_matcher": "mlp", "executor": "graph"},
-             "cae-mlp": {"goal_matcher": "graph", "executor": "mlp"}}
-#: The RL baselines (section "Baselines"; :mod:`masp_lite.nets.baselines`), likewise.
-BASELINES = {"h-mappo": {"goal_matcher": "hungarian", "executor": "nearest"},
-             "htamp": {"goal_matcher": "mlp", "executor": "mlp"},
-             "mage-x": {"goal_matcher": "graph", "executor": "subgraph"},
-             "mappo": {"goal_matcher": "none", "executor": "attention"},
-             "darl1n": {"goal_matcher": "none", "executor": "radius"}}
-#: Every learned method of this module -> its weights' settings.
-VARIANTS = {"masp": {"goal_matcher": "graph", "executor": "graph"}, **ABLATIONS, **BASELINES}
-#: Every learned method -> the training settings that make it (:func:`masp_lite.training.method_config`):
-#: its variant, and for ``mage-x`` a ``global_step`` past every horizon (goals assigned once, at the start).
-METHOD_SETTINGS = {m: dict(v) for m, v in VARIANTS.items()}
-METHOD_SETTINGS["mage-x"]["global_step"] = 1000
+_LEARNED = learned_methods("particle")
+#: Views of the method table (:data:`masp_lite.policies.METHODS`), not tables of their own: every learned
+#: particle method -> the NetConfig settings its weights must have; the ablations and the RL baselines among
+#: them; and the training settings that make each (its ``nets`` and ``train``, e.g. ``mage-x``'s long period).
+VARIANTS = {m: dict(e["nets"]) for m, e in _LEARNED.items()}
+ABLATIONS = {m: VARIANTS[m] for m, e in _LEARNED.items() if e.get("group") == "ablation"}
+BASELINES = {m: VARIANTS[m] for m, e in _LEARNED.items() if e.get("group") == "baseline"}
+METHOD_SETTINGS = {m: {**e["nets"], **e.get("train", {})} for m, e in _LEARNED.items()}
 
 
 class MASPPolicy:
-    """Trained Goal Matcher + executor on a particle world (method ``METHOD``).
+    """Trained Goal Matcher + executor on a particle world (``method``: ``masp`` or a variant of the table).
 
     ``checkpoint``: a weights file (default: the shipped one for the world's scenario, see
-    :mod:`masp_lite.weights`). ``seed`` seeds the random group division. ``global_step``
+    :mod:`masp_lite.weights`; a variant's packaged seed 0). ``seed`` seeds the random group division. ``global_step``
     overrides the checkpoint's Goal Matcher period. ``deterministic``: take the most likely
     goals and action (the paper's "highest matching score"); ``False`` samples both.
     ``decode``: how the Goal Matcher's scores become goals (:mod:`masp_lite.nets.decoding`):
@@ -72,39 +64,40 @@ class MASPPolicy:
     of them once every one has been reached); fixed teams choose among all landmarks.
     """
 
-    METHOD = "masp"
-
-    def __new__(cls, world=None, *args, **options):
-        if cls is MASPPolicy and getattr(getattr(world, "scenario", None), "kind", None) == "drone":
-            from .drone_masp import DroneMASPPolicy  # drones: the Gaussian executor (MuJoCo only when needed)
-            return DroneMASPPolicy(world, *args, **options)
-        return super().__new__(cls)
-
     def __init__(self, world, checkpoint: str | None = None, seed: int = 0, global_step: int | None = None,
                  deterministic: bool = True, any_scenario: bool = False, decode: str = "joint",
-                 resample: bool = False):
-        name = self.METHOD
+                 resample: bool = False, method: str = "masp"):
+        if method not in VARIANTS:
+            raise ValueError(f"method: expected one of {sorted(VARIANTS)}, got {method!r}")
+        name = self.method = method
         if getattr(world.scenario, "kind", None) != "particle":
             raise ValueError(f"{name}: expected a particle world (mpe-* scenario)")
         self.world = world
-        if checkpoint is None and name != "masp":
-            checkpoint = kept_weights(name, world.scenario)
-        self.nets, self.meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
-        self.nets.eval()
+        if isinstance(checkpoint, torch.nn.Module):  # networks in memory (:meth:`from_nets`): taken as they are
+            self.nets, self.meta = checkpoint, {}
+        else:
+            if checkpoint is None and _LEARNED[name]["weights"] != "shipped":
+                checkpoint = method_checkpoint(name, world.scenario, _LEARNED[name]["weights"])
+            self.nets, self.meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
+            self.nets.eval()
+            self._check_variant(name)
+        self.resample = bool(resample)
+        gs = self.nets.arch["global_step"] if global_step is None else global_step
+        if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
+            raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
+        self._setup(gs, deterministic, seed, decode)
+
+    def _check_variant(self, name):
         c, want = self.nets.config, VARIANTS[name]
         got = {k: getattr(c, k) for k in want}
         if got != want:
             other = [m for m, v in VARIANTS.items() if all(getattr(c, k) == x for k, x in v.items())]
             raise ValueError(f"{name}: the checkpoint's networks are {got}, expected {want}"
                              + (f"; these are {other[0]} weights: use that method" if other else ""))
-        if c.fixed_size and world.num_agents != c.team_size:
+        if c.fixed_size and self.world.num_agents != c.team_size:
             raise ValueError(f"{name}: these weights are an MLP built for {c.team_size} agents (a fixed input "
-                             f"size), the scenario has {world.num_agents}; evaluate it at N = {c.team_size} only")
-        self.resample = bool(resample)
-        gs = self.nets.arch["global_step"] if global_step is None else global_step
-        if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
-            raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
-        self._setup(gs, deterministic, seed, decode)
+                             f"size), the scenario has {self.world.num_agents}; evaluate it at N = {c.team_size} "
+                             "only")
 
     def _setup(self, global_step, deterministic, seed, decode):
         if decode not in (*DECODERS, "hungarian"):
@@ -114,16 +107,12 @@ class MASPPolicy:
         self.scale = self.world.scenario.world_size / 2
         self.generator = torch.Generator().manual_seed(self.seed)
         self.goals, self.drawn_for = None, None
-        self.resample = getattr(self, "resample", False)
 
     @classmethod
     def from_nets(cls, world, nets: MASPNets, seed: int = 0, deterministic: bool = True,
                   decode: str = "joint") -> "MASPPolicy":
-        """A policy around networks in memory (used by training's periodic evaluation)."""
-        self = cls.__new__(cls)
-        self.world, self.nets, self.meta = world, nets, {}
-        self._setup(nets.arch["global_step"], deterministic, seed, decode)
-        return self
+        """A policy around networks in memory, whatever their variant (used by training's periodic evaluation)."""
+        return cls(world, checkpoint=nets, seed=seed, deterministic=deterministic, decode=decode)
 
     def reset(self, obs) -> None:
         self.goals, self.drawn_for = None, None
@@ -167,28 +156,3 @@ class MASPPolicy:
         perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(obs["alive"].device)
         actions = self._pick(self.nets.cae_logits(self.nets.cae_inputs(obs, self.goals, perm)))
         return torch.where(obs["alive"], actions, torch.zeros_like(actions))
-
-
-
-def kept_weights(method: str, scenario):
-    """The kept seed-0 weights of ``method`` for a scenario: ``results/training/METHOD/PRESET-seed0.pt``.
-
-    The ablations were trained on ``mpe-20`` only; a baseline has weights per team size, and a
-    team-change preset (``mpe-20to10``) uses those of its starting team (``mpe-20``)."""
-    names = ["mpe-20"] if method in ABLATIONS else [scenario.name, f"mpe-{scenario.num_agents}"]
-    for stem in dict.fromkeys(names):
-        path = KEPT_DIR / method / f"{stem}-seed0.pt"
-        if path.exists():
-            return path
-    raise ValueError(f"{method}: no weights given and none kept for {scenario.name!r} at results/training/{method}/ "
-                     f"(expected {names[0]}-seed0.pt; a source checkout keeps them); pass checkpoint=PATH")
-
-
-def _variant(method: str) -> type:
-    """The policy class of an ablation or baseline: :class:`MASPPolicy` that checks its weights' variant."""
-    doc = (f"``{method}``: :class:`MASPPolicy` around weights with {VARIANTS[method]}; default weights: "
-           f"``results/training/{method}/`` (:func:`kept_weights`).")
-    return type(method.replace("-", "_"), (MASPPolicy,), {"METHOD": method, "__doc__": doc})
-
-
-masp_rg, gm_mlp, cae_mlp, h_mappo, htamp, mage_x, mappo, darl1n = (_variant(m) for m in (*ABLATIONS, *BASELINES))

@@ -11,7 +11,7 @@ agent to its goal. All three share :class:`HungarianPlanner`:
   agent count at each global step" (:func:`~masp_lite.algos.assignment.hungarian_random_subset`);
   ``team_protocol="sequential"`` takes the paper's other account instead (assign once
   when the team shrinks, hand on leftover goals as agents reach theirs;
-  :class:`~masp_lite.algos.assignment.TeamAssignment`).
+  :class:`~masp_lite.algos.team.TeamAssignment`).
   An agent left without a goal (more agents than unreached landmarks) holds its position.
 * **Planning**, in the subclass's :meth:`~HungarianPlanner.desired_velocity`: ORCA every
   environment step; RRT* and Voronoi paths every global step (RRT* also when blocked),
@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..algos.assignment import TeamAssignment
+from ..algos.team import TeamAssignment
 from ..planners.controllers import GLOBAL_STEP, MAX_SPEED, arrive_velocity, pad_paths, track_path, velocity_to_action
 from ..planners.orca import orca_velocities
 from ..planners.rrt_star import plan_rrt_star, segments_blocked
@@ -49,17 +49,6 @@ class HungarianPlanner:
 
     #: Planner parameters accepted as keyword options, with their defaults.
     OPTIONS: dict = {}
-    #: The class of :mod:`masp_lite.policies.drone_planners` that a drone world is handed to
-    #: (set by the registry's classes themselves; None: particle worlds only).
-    DRONE_CLASS: str | None = None
-
-    def __new__(cls, world, *args, **options):
-        drone = vars(cls).get("DRONE_CLASS")
-        if drone and getattr(getattr(world, "scenario", None), "kind", None) == "drone":
-            from . import drone_planners  # MuJoCo only when needed
-            return getattr(drone_planners, drone)(world, *args, **options)
-        return super().__new__(cls)
-
     def __init__(self, world, seed: int = 0, team_protocol: str = "random_subset", **options):
         unknown = sorted(set(options) - set(self.OPTIONS))
         if unknown:
@@ -147,7 +136,6 @@ class HOrca(HungarianPlanner):
     (everyone keeps right, so the pair passes).
     """
 
-    DRONE_CLASS = "DroneHOrca"
     OPTIONS = dict(time_horizon=0.5, time_horizon_obst=0.3, neighbor_dist=3.0, max_neighbors=8,
                    max_obstacles=4, safety_margin=0.04, max_speed=MAX_SPEED, stall=0.25, detour_deg=60.0)
 
@@ -222,7 +210,6 @@ class HRRTStar(_PathPlanner):
     """(H)RRT*: per-agent RRT* paths around obstacles and agents, re-planned every global
     step or when the next segment is blocked; a better old path is kept (paths are reused)."""
 
-    DRONE_CLASS = "DroneHRRTStar"
     OPTIONS = dict(samples=60, step_size=1.0, rewire_radius=1.5, goal_bias=0.2, margin=0.1,
                    max_speed=MAX_SPEED)
 
@@ -270,7 +257,6 @@ class HRRTStar(_PathPlanner):
 class HVoronoi(_PathPlanner):
     """(H)Voronoi: shortest route along safe Voronoi edges of agents and obstacles, every global step."""
 
-    DRONE_CLASS = "DroneHVoronoi"
     OPTIONS = dict(margin=0.05, max_speed=MAX_SPEED)
 
     def desired_velocity(self, obs, goals, due):

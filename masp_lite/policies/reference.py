@@ -22,7 +22,8 @@ import math
 
 import torch
 
-from ..algos.assignment import TEAM_PROTOCOLS, TeamAssignment, check_power
+from ..algos.assignment import check_power
+from ..algos.team import TEAM_PROTOCOLS, TeamAssignment
 from ..envs.particle import ACTION_DIRECTIONS, PHYSICS
 from ..planners.controllers import velocity_to_action  # the controller every planner shares
 
@@ -99,7 +100,7 @@ class HungarianGreedy:
     get no goal). ``power`` is the assignment's cost, ``distance ** power`` (1: total
     distance, the "(H)" baselines' and the default; 2: total squared distance, shorter
     longest trips, see :func:`~masp_lite.algos.assignment.hungarian`). ``cost="bottleneck"``
-    takes the min–max assignment instead (:func:`~masp_lite.algos.assignment.bottleneck`:
+    takes the min–max assignment instead (:func:`~masp_lite.algos.team.bottleneck`:
     the longest trip as short as possible, then the least total). ``team_protocol``: how a
     shrunk team is assigned (:data:`TEAM_PROTOCOLS`; default ``resolve``). A world whose team
     has just shrunk is reassigned at once rather than at its next global step, so the
@@ -119,16 +120,9 @@ class HungarianGreedy:
     costing SR. :func:`velocity_to_action` turns the desired velocity into an action.
     Agents without a goal brake to a stop. No collision avoidance.
 
-    On a drone scenario the class hands over to
-    ``masp_lite.policies.drones.DroneHungarianGreedy(world, **options)`` (its own
-    options; ``global_step`` is a particle-world option).
+    On drone worlds the method table gives ``h-greedy`` to
+    :class:`masp_lite.policies.drones.DroneHungarianGreedy` (its own options).
     """
-
-    def __new__(cls, world, *args, **options):
-        if getattr(getattr(world, "scenario", None), "kind", None) == "drone":
-            from .drones import DroneHungarianGreedy  # MuJoCo only when needed
-            return DroneHungarianGreedy(world, *args, **options)
-        return super().__new__(cls)
 
     def __init__(self, world, global_step: int = 3, power: float = 1.0, cost: str = "sum",
                  team_protocol: str = "resolve", **options):
@@ -196,10 +190,8 @@ def min_max(world, global_step: int = 3) -> HungarianGreedy:
     """``h-bottleneck``: h-greedy with the min–max assignment, re-solved every global step.
 
     Not in the paper: Steps waits for the last landmark, so the assignment whose longest
-    trip is shortest (:func:`~masp_lite.algos.assignment.bottleneck`) bounds what any
-    goal assignment followed by straight lines can do. A drone world is handed to
-    ``masp_lite.policies.drone_planners.DroneBottleneck`` (the same assignment, straight flights)."""
-    if getattr(getattr(world, "scenario", None), "kind", None) == "drone":
-        from .drone_planners import DroneBottleneck  # MuJoCo only when needed
-        return DroneBottleneck(world, global_step=global_step)
+    trip is shortest (:func:`~masp_lite.algos.team.bottleneck`) bounds what any
+    goal assignment followed by straight lines can do. On drone worlds the method table gives
+    ``h-bottleneck`` to :class:`masp_lite.policies.drone_planners.DroneBottleneck` (the same
+    assignment, straight flights)."""
     return HungarianGreedy(world, global_step=global_step, cost="bottleneck")

@@ -32,7 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..weights import KEPT_DIR, REPO_ROOT, base_scenario, read_manifest
+from ..weights import base_scenario, read_manifest
+
+#: The source checkout this package runs from, and its kept training histories (absent from an installed copy).
+REPO_ROOT = Path(__file__).resolve().parents[2]
+KEPT_DIR = REPO_ROOT / "results" / "training"
 
 __all__ = ["read_progress", "last_evaluation", "training_history", "plot_progress", "kept_curves", "plot_seed_bands",
            "ProgressLine"]
@@ -204,7 +208,7 @@ def kept_curves(folder: str, scenario: str = "mpe-20", root=None) -> dict[int, d
 
     ``folder`` is a folder of ``results/training/`` (``"faithful"``, ``"masp-rg"``, ...) holding
     ``SCENARIO-seedK.progress.csv`` (the last stage of each seed, see
-    :func:`masp_lite.training.ship_run`); ``{}`` when there is none (an installed package)."""
+    :func:`masp_lite.reproduction.shipping.ship_run`); ``{}`` when there is none (an installed package)."""
     base = (KEPT_DIR if root is None else Path(root) / "results" / "training") / folder
     out = {}
     for path in sorted(base.glob(f"{scenario}-seed*.progress.csv")):

@@ -1,7 +1,9 @@
 """MASP weights files: save, load and the checks every file passes before it is used.
 
 This folder also holds the shipped weights, one file per scenario (``mpe-5.pt``, ...), and
-``manifest.json``: the package's only data.
+``manifest.json``; and ``methods/``: the seed-0 weights of every other learned method the
+method table lists (``methods/METHOD/PRESET.pt``, hashes in ``methods/manifest.json``), so an
+installed copy evaluates every method (:func:`method_checkpoint`). That is the package's only data.
 
 A weights file is a ``torch.save`` of plain tensors and numbers (it loads with
 ``torch.load(..., weights_only=True)``)::
@@ -26,6 +28,7 @@ seeds stand for it.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import io
 import json
@@ -38,22 +41,17 @@ from pathlib import Path
 import torch
 
 from ..envs.scenarios import MPE2_WORLD, get_scenario, world_name
-from ..nets.drones import DroneNets
 from ..nets.masp import MASPNets
 
-__all__ = ["FORMAT", "HERE", "MANIFEST", "REPO_ROOT", "KEPT_DIR", "save_weights", "load_weights", "read_weights",
-           "read_manifest", "trained_world",
+__all__ = ["FORMAT", "HERE", "MANIFEST", "METHODS_DIR", "save_weights", "load_weights", "read_weights",
+           "read_manifest", "trained_world", "method_checkpoint",
            "default_checkpoint", "base_scenario", "trained_preset", "sha256", "atomic_write_bytes"]
 
 FORMAT = "masp-lite/masp-weights/1"
 HERE = Path(__file__).resolve().parent
 MANIFEST = HERE / "manifest.json"
-#: The source checkout's root (``masp_lite/weights/`` -> two levels up): shipped manifest entries name their
-#: training history relative to it.
-REPO_ROOT = HERE.parents[1]
-#: ``results/training/`` of a source checkout: training histories and the kept weights of training seeds and
-#: recipes that are not shipped (absent from an installed package).
-KEPT_DIR = REPO_ROOT / "results" / "training"
+#: The packaged seed-0 weights of the learned methods other than the shipped MASP (``METHOD/PRESET.pt``).
+METHODS_DIR = HERE / "methods"
 _BASE = {"mpe-20to10": "mpe-20", "mpe-50to20": "mpe-50", "drone-20to10": "drone-20"}
 _ZIP_MAGIC, _PICKLE_MAGIC = b"PK", b"\x80"  # torch.save's zip archive; its legacy pickle format
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
@@ -74,8 +72,19 @@ def trained_preset(scenario) -> str:
     return read_manifest().get(name, {}).get("trained_on", name)
 
 
+@functools.lru_cache(maxsize=64)
+def _read(path: str, mtime_ns: int, size: int) -> bytes:
+    return Path(path).read_bytes()
+
+
+def file_bytes(path) -> bytes:
+    """A file's bytes, read from disk once while it is unchanged (its hash, its check and its load share them)."""
+    st = Path(path).stat()
+    return _read(str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
+
+
 def sha256(path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return hashlib.sha256(file_bytes(path)).hexdigest()
 
 
 def atomic_write_bytes(path, data: bytes) -> None:
@@ -124,6 +133,26 @@ def read_manifest() -> dict:
     return json.loads(MANIFEST.read_text())
 
 
+def _methods_manifest() -> dict:
+    path = METHODS_DIR / "manifest.json"
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def method_checkpoint(method: str, scenario, presets) -> Path:
+    """The packaged seed-0 weights of ``method`` for a scenario, among the ``presets`` it was trained on.
+
+    The scenario's own preset, else the preset it starts from (``mpe-20to10`` -> ``mpe-20``), else its
+    team size's (``mpe-N``); a method trained on one preset only (the ablations, ``mpe-20``) uses that one."""
+    sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
+    names = [sc.name, base_scenario(sc), f"{'drone' if sc.kind == 'drone' else 'mpe'}-{sc.num_agents}"]
+    pick = next((n for n in names if n in presets), presets[0] if len(presets) == 1 else None)
+    entry = _methods_manifest().get(method, {}).get(pick)
+    if entry is None:
+        raise ValueError(f"{method}: no weights given and none packaged for {sc.name!r} (packaged: "
+                         f"{sorted(_methods_manifest().get(method, {}))}); pass checkpoint=PATH")
+    return METHODS_DIR / entry["file"]
+
+
 def default_checkpoint(scenario) -> Path:
     """The shipped weights file for ``scenario``; a clear error when none is shipped."""
     name = base_scenario(scenario)
@@ -154,18 +183,20 @@ def read_weights(path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"checkpoint {str(path)!r}: expected an existing weights file")
-    shipped = {v["file"]: v for v in read_manifest().values()}
-    if path.resolve().parent == HERE and path.name in shipped and sha256(path) != shipped[path.name]["sha256"]:
+    packaged = {HERE / v["file"]: v for v in read_manifest().values()}
+    packaged.update({METHODS_DIR / v["file"]: v for m in _methods_manifest().values() for v in m.values()})
+    entry = packaged.get(path.resolve())
+    if entry is not None and sha256(path) != entry["sha256"]:
         raise ValueError(f"checkpoint {str(path)!r}: contents differ from manifest.json (corrupt or replaced)")
-    with open(path, "rb") as f:
-        head = f.read(4)
+    data = file_bytes(path)
+    head = data[:4]
     if not head:
         raise ValueError(f"checkpoint {str(path)!r}: the file is empty; expected a MASP weights file")
     if not head.startswith((_ZIP_MAGIC, _PICKLE_MAGIC)):
         raise ValueError(f"checkpoint {str(path)!r}: not a torch file (it starts with {head!r}); expected a MASP "
                          "weights file saved by torch.save, such as a run's weights.pt")
     try:
-        rec = torch.load(path, map_location="cpu", weights_only=True)
+        rec = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     except Exception as e:  # truncated zip, objects weights_only refuses, ...
         raise ValueError(f"checkpoint {str(path)!r}: expected a MASP weights file, could not read it "
                          f"({type(e).__name__}: {_reason(e)})") from None
@@ -206,6 +237,8 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
         raise ValueError(f"checkpoint {str(path)!r} was trained in the world {world_name(trained_world(rec))}; "
                          f"expected weights for {world_name(scenario.world)} ({_ANYWAY})")
     try:
+        if kind == "drone":
+            from ..nets.drones import DroneNets  # MuJoCo only for drone weights
         nets = (DroneNets if kind == "drone" else MASPNets)(**rec["arch"])
         nets.load_state_dict(rec["state_dict"])
     except (TypeError, ValueError, RuntimeError, KeyError) as e:

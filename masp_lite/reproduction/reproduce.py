@@ -25,12 +25,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..envs import MPE2_WORLD, get_scenario, world_name
-from ..policies import METHODS, get_factory, method_options
-from ..policies.drone_masp import kept_checkpoint
-from ..weights import KEPT_DIR, base_scenario, read_manifest, trained_preset
-from .evaluate import evaluate
+from ..evaluation import evaluate
+from ..evaluation.tables import cell, render_rows
+from ..policies import METHODS
+from ..weights import base_scenario, read_manifest, trained_preset
+from . import KEPT_DIR, RESULTS_DIR
 from .paper import PAPER
-from .tables import cell, render_rows
 
 __all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "pick", "pool", "training_seed", "fill_blocks",
            "evaluation_jobs", "evaluate_records", "render", "build"]
@@ -57,8 +57,6 @@ class Table:
     """Lines printed under the table (e.g. which training seeds a learned method's cells pool)."""
 
 
-#: ``results/`` of the source checkout this package runs from: the committed records.
-RESULTS_DIR = KEPT_DIR.parent
 
 
 def load_records(root=RESULTS_DIR) -> list[dict]:
@@ -69,7 +67,9 @@ def load_records(root=RESULTS_DIR) -> list[dict]:
     the world the file names (files that name none were made in mpe2's world)."""
     root = Path(root)
     if not root.is_dir():
-        raise ValueError(f"records: expected a folder of evaluate records such as results/, got {str(root)!r}")
+        where = " (the records are a source checkout's: this copy of masp_lite is installed without them; " \
+            "pass --records DIR)" if root == RESULTS_DIR else ""
+        raise ValueError(f"records: expected a folder of evaluate records such as results/, got {str(root)!r}{where}")
     out = []
     for path in sorted(root.rglob("*.json")):
         rec = json.loads(path.read_text())
@@ -119,8 +119,8 @@ def training_seed(rec: dict, kept: str = "") -> int | None:
 
 
 def _learned(method: str) -> bool:
-    """A method that loads weights (its factory takes a ``checkpoint``)."""
-    return method in METHODS and "checkpoint" in method_options(get_factory(method))[0]
+    """A method that loads weights (networks in the method table)."""
+    return method in METHODS and any("nets" in e for e in METHODS[method].values())
 
 
 def pool(records) -> dict:
@@ -593,7 +593,7 @@ def _drone_weights(method: str, scenario: str) -> bool:
     """Whether a learned drone method has weights here: shipped (``masp``) or kept (``masp-velocity``)."""
     if method == "masp":
         return base_scenario(scenario) in read_manifest()
-    return kept_checkpoint(method, scenario).exists()
+    return (KEPT_DIR / method / f"{base_scenario(scenario)}-seed0.pt").exists()
 
 
 def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:

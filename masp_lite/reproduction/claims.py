@@ -21,7 +21,7 @@ from .paper import PAPER
 
 __all__ = ["PAPER_MASP", "HIGHER_IS_BETTER", "better", "verdict", "against_paper"]
 
-#: MASP's means in the paper (:data:`masp_lite.evaluation.paper.PAPER`), by scenario and metric.
+#: MASP's means in the paper (:data:`masp_lite.reproduction.paper.PAPER`), by scenario and metric.
 PAPER_MASP = {sc: {k: v[0] for k, v in cells.items() if v[0] is not None}
               for table in ("mpe", "mpe-varying") for (sc, method), cells in PAPER[table].items() if method == "masp"}
 

@@ -1,7 +1,7 @@
 """The plan of ``reproduce --train``: every kept training run, retrained from random networks.
 
 Nothing here is a second copy of the recipes: the plan is read from the kept histories
-(``results/training/**/PRESET-seedK.manifest.json``, written by :func:`masp_lite.training.ship_run`).
+(``results/training/**/PRESET-seedK.manifest.json``, written by :func:`masp_lite.reproduction.shipping.ship_run`).
 Each history lists its stages with the exact configuration, seed, scenario overrides, env
 steps and wall-clock on the machine that trained it; a stage that fine-tunes names the run
 folder it started from (``--init runs/X/weights.pt``), which is the ``--out`` of an earlier
@@ -39,12 +39,13 @@ from pathlib import Path
 
 import torch
 
-from .config import TrainConfig
-from .envs import get_scenario
-from .evaluation import evaluate
-from .evaluation.reproduce import load_records
-from .training import method_config, ship_run, train
-from .weights import atomic_write_bytes, base_scenario, sha256, trained_preset
+from ..config import TrainConfig
+from ..envs import get_scenario
+from ..evaluation import evaluate
+from ..training import method_config, train
+from ..weights import atomic_write_bytes, base_scenario, sha256, trained_preset
+from .reproduce import load_records
+from .shipping import ship_run
 
 __all__ = ["Stage", "Run", "read_plan", "load_plan", "save_plan", "describe", "run_plan", "STAGES_DIR",
            "RAY_INSTALL"]
