@@ -326,6 +326,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
             st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started,
                       command=first_command or command or default_command, init=str(init) if init is not None else "")
             _write_csv(out / "progress.csv", rows)
+            (out / "manifest.json").unlink(missing_ok=True)  # a finished run's, resumed: its weights hash goes stale
             save_weights(out / "weights.pt", trainer.nets, trainer.world.scenario)
             _save_state(state_path, st)
 
