@@ -131,3 +131,17 @@ def test_resuming_a_finished_run_drops_its_stale_manifest_until_it_finishes_agai
     load_weights(out / "weights.pt", any_scenario=True)                   # the newer weights load
     train("mpe-5", _cfg(updates=3), out, progress=False, resume=True)
     load_weights(out / "weights.pt", any_scenario=True)
+
+
+def test_init_and_resume_mismatches_name_both_sides(tmp_path):
+    out = tmp_path / "run"
+    train("mpe-5", _cfg(updates=1), out, progress=False)
+    with pytest.raises(ValueError, match=r"differs in \['lr'\] \(lr: run 0.0007, now 0.001\)"):
+        train("mpe-5", _cfg(updates=2, lr=1e-3), out, progress=False, resume=True)
+    with pytest.raises(ValueError, match=r"width: --init 8, configured 16"):
+        train("mpe-5", _cfg(updates=1, width=16), tmp_path / "wide", progress=False, init=out / "weights.pt")
+    mlp = tmp_path / "mlp"
+    train("mpe-5", _cfg(updates=1, goal_matcher="mlp", executor="mlp"), mlp, progress=False)
+    with pytest.raises(ValueError, match=r"team_size: --init 5, configured 20.*one team size"):
+        train("mpe-20", _cfg(updates=1, goal_matcher="mlp", executor="mlp"), tmp_path / "mlp20", progress=False,
+              init=mlp / "weights.pt")
