@@ -299,8 +299,10 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
             raise ValueError(f"{state_path} was trained on {state.get('scenario')!r} {state.get('overrides')}; "
                              f"expected {trainer.world.scenario.name!r} {overrides or {}}")
         if diff or int(state.get("seed", -1)) != int(seed):
+            sides = [f"{k}: run {saved.get(k, defaults[k])!r}, now {now[k]!r}" for k in diff] or \
+                [f"seed: run {state.get('seed')!r}, now {seed!r}"]
             raise ValueError(f"{state_path}: expected the same seed and settings as the interrupted run; "
-                             f"differs in {diff or ['seed']}")
+                             f"differs in {[*diff] or ['seed']} ({'; '.join(sides)})")
         if cfg.run.updates < int(state["iterations"]):
             raise ValueError(f"--set updates={cfg.run.updates}: expected at least the {state['iterations']} iterations "
                              f"already done in {state_path} (updates={state['iterations']} ends the run there)")
@@ -313,7 +315,11 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         nets, rec = load_weights(init, any_scenario=True)
         a, b = (_layout(x.arch) for x in (nets, trainer.nets))
         if a != b:
-            raise ValueError(f"--init {init}: architecture {nets.arch} differs from the configured {trainer.nets.arch}")
+            sides = "; ".join(f"{k}: --init {a.get(k)!r}, configured {b.get(k)!r}"
+                              for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k))
+            hint = " (an mlp variant is built for one team size: fine-tune it at the same N)" \
+                if any(k == "team_size" for k in set(a) | set(b) if a.get(k) != b.get(k)) else ""
+            raise ValueError(f"--init {init}: architecture differs from the configured networks in {sides}{hint}")
         trainer.nets.load_state_dict(nets.state_dict())
     lock = _take_lock(out)
     try:
@@ -326,6 +332,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
             st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started,
                       command=first_command or command or default_command, init=str(init) if init is not None else "")
             _write_csv(out / "progress.csv", rows)
+            (out / "manifest.json").unlink(missing_ok=True)  # a finished run's, resumed: its weights hash goes stale
             save_weights(out / "weights.pt", trainer.nets, trainer.world.scenario)
             _save_state(state_path, st)
 

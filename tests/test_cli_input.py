@@ -100,3 +100,12 @@ def test_bench_env_ratios_follow_from_the_printed_rates(tmp_path, capsys):
     if r["torchrl_agent_steps_per_s"] is not None:
         shown = float(re.search(r"overhead of the TorchRL face at 4 worlds: ([\d.]+)x", text)[1])
         assert abs(shown - rates["beside it"] / rates["TorchRL face"]) < 0.01
+
+
+@pytest.mark.parametrize("where,words", [("/proc/x.gif", "is not writable"), ("FILE/x.gif", "is a file, not a folder")])
+def test_play_out_that_cannot_be_written_is_one_clear_error_before_the_episode(tmp_path, capsys, where, words):
+    (tmp_path / "FILE").write_text("x")
+    out = where.replace("FILE", str(tmp_path / "FILE"))
+    assert main(["play", "--method", "h-greedy", "--scenario", "mpe-5", "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out") and words in err and "Traceback" not in err

@@ -141,7 +141,7 @@ CHEATS = {
     "episode_metrics": "return ev.success_rate(log), ev.steps(log), ev.collision_rate(log)",
     "cost_matrix": "return assignment.distance_matrix(agent_pos, goal_pos)",
     "choose_action": "return reference.velocity_to_action(vel, desired_vel)",
-    "my_bottleneck": "return assignment._bottleneck_one(dist)",
+    "my_bottleneck": "return team._bottleneck_one(dist)",
     "s_inter": "return encoders.s_inter(query, key, mask)",
     "node_update": "return encoders.node_update(x, value, s, update_mlp)",
     "cross_scores": "return torch.softmax(cross(y_a, y_t, dist), dim=-1)",

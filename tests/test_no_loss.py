@@ -101,3 +101,47 @@ def test_resume_keeps_the_history_honest(tmp_path):
         train("mpe-5", _cfg(updates=3), out, progress=False, resume=True)
     (out / "progress.csv").write_bytes(csv)
     assert train("mpe-5", _cfg(updates=3), out, progress=False, resume=True)["iterations"] == 3
+
+
+def test_a_run_folders_weights_are_checked_against_the_hash_its_manifest_recorded(tmp_path):
+    from masp_lite.weights import load_weights
+    out = tmp_path / "run"
+    train("mpe-5", _cfg(updates=1), out, progress=False)
+    nets, _ = load_weights(out / "weights.pt", any_scenario=True)     # whole: loads
+    raw = torch.load(out / "weights.pt", weights_only=True)
+    name = next(iter(raw["state_dict"]))
+    raw["state_dict"][name].zero_()                                       # a zeroed tensor
+    torch.save(raw, out / "weights.pt")
+    with pytest.raises(ValueError, match="differ from the SHA-256 its run recorded"):
+        load_weights(out / "weights.pt", any_scenario=True)
+    raw["state_dict"][name].fill_(float("nan"))
+    torch.save(raw, tmp_path / "loose.pt")                                # not in a run folder: no hash to check
+    with pytest.raises(ValueError, match=rf"parameter '{name}' holds NaN or inf"):
+        load_weights(tmp_path / "loose.pt", any_scenario=True)
+
+
+def test_resuming_a_finished_run_drops_its_stale_manifest_until_it_finishes_again(tmp_path):
+    from masp_lite.weights import load_weights
+    out = tmp_path / "run"
+    train("mpe-5", _cfg(updates=1), out, progress=False)
+    with pytest.raises(ValueError, match="stopped"):
+        train("mpe-5", _cfg(updates=3), out, progress=False, resume=True,
+              on_iteration=lambda t: (_ for _ in ()).throw(ValueError("stopped")))
+    assert not (out / "manifest.json").exists()
+    load_weights(out / "weights.pt", any_scenario=True)                   # the newer weights load
+    train("mpe-5", _cfg(updates=3), out, progress=False, resume=True)
+    load_weights(out / "weights.pt", any_scenario=True)
+
+
+def test_init_and_resume_mismatches_name_both_sides(tmp_path):
+    out = tmp_path / "run"
+    train("mpe-5", _cfg(updates=1), out, progress=False)
+    with pytest.raises(ValueError, match=r"differs in \['lr'\] \(lr: run 0.0007, now 0.001\)"):
+        train("mpe-5", _cfg(updates=2, lr=1e-3), out, progress=False, resume=True)
+    with pytest.raises(ValueError, match=r"width: --init 8, configured 16"):
+        train("mpe-5", _cfg(updates=1, width=16), tmp_path / "wide", progress=False, init=out / "weights.pt")
+    mlp = tmp_path / "mlp"
+    train("mpe-5", _cfg(updates=1, goal_matcher="mlp", executor="mlp"), mlp, progress=False)
+    with pytest.raises(ValueError, match=r"team_size: --init 5, configured 20.*one team size"):
+        train("mpe-20", _cfg(updates=1, goal_matcher="mlp", executor="mlp"), tmp_path / "mlp20", progress=False,
+              init=mlp / "weights.pt")

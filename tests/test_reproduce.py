@@ -87,7 +87,7 @@ def test_training_seeds_are_pooled_exactly():
     # two episodes per record, steps (19, 21) and (21, 23): population std of all four is sqrt(2)
     assert got["steps"]["std"] == pytest.approx(2 ** 0.5)
     table = rp.build("mpe", [a, b])
-    assert "mpe-20, MASP: mean over training seeds 0, 1" in rp.render(table, "text")
+    assert "mean over training seeds 0, 1: MASP (mpe-20)" in rp.render(table, "text")
     with pytest.raises(ValueError, match="expected one"):
         rp.pick([a, b, dict(b)], "masp", "mpe-20")
     unsolved = {**b, "steps": {"mean": None, "std": None}}  # every episode scored the horizon, 45
@@ -104,7 +104,7 @@ def test_another_recipes_seeds_are_kept_apart():
     assert rp.pick([shipped, f0], "masp", "mpe-50", rp.FAITHFUL)["training_seeds"] == [0]   # one seed: still named
     text = rp.render(rp.build("faithful", [shipped, f0, f1]), "text")
     assert "50.00 (1.00)" in text and "62.00 (" in text
-    assert "MASP (eq. 1 as written): mean over training seeds 0, 1" in text
+    assert "mean over training seeds 0, 1: MASP (eq. 1 as written) (mpe-50)" in text
     assert rp.pick([shipped], "masp", "mpe-50", rp.FAITHFUL) is None
 
 

@@ -63,28 +63,28 @@ class _Any(dict):
         return self.get(key)
 
 
-def check_writable(path) -> Path:
+def check_writable(path, flag: str = "--json", example: str = "out.json") -> Path:
     """``path`` as a ``Path`` when the record can be written there later; else one ValueError.
 
     Nothing is created now (:func:`run` makes missing folders when it writes): ``path`` must
     be a writable file, or its nearest existing folder must be a writable folder; a regular
     file on the way, or ``path`` itself a folder, fails."""
     if not str(path).strip():
-        raise ValueError("--json: expected a file path such as 'out.json', got an empty string")
+        raise ValueError(f"{flag}: expected a file path such as {example!r}, got an empty string")
     path = Path(path)
     if path.is_dir():
-        raise ValueError(f"--json {str(path)!r} is a folder; expected a file path such as {str(path / 'out.json')!r}")
+        raise ValueError(f"{flag} {str(path)!r} is a folder; expected a file path such as {str(path / example)!r}")
     if path.exists():
         if not path.is_file():  # a device (/dev/full) or a pipe would swallow or refuse the record
-            raise ValueError(f"--json {str(path)!r} is not a regular file; expected a writable file path")
+            raise ValueError(f"{flag} {str(path)!r} is not a regular file; expected a writable file path")
         if not os.access(path, os.W_OK):
-            raise ValueError(f"--json {str(path)!r}: the file is not writable; expected a writable path")
+            raise ValueError(f"{flag} {str(path)!r}: the file is not writable; expected a writable path")
         return path
     folder = path.parent
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
     if not folder.is_dir():
-        raise ValueError(f"--json {str(path)!r}: {str(folder)!r} is a file, not a folder; expected a writable path")
+        raise ValueError(f"{flag} {str(path)!r}: {str(folder)!r} is a file, not a folder; expected a writable path")
     probe = folder / f".masp-lite-probe-{os.getpid()}"
     try:  # permissions alone do not tell (/proc, a read-only mount): write a probe file and remove it
         if not os.access(folder, os.W_OK | os.X_OK):
@@ -92,7 +92,7 @@ def check_writable(path) -> Path:
         probe.write_bytes(b"")
         probe.unlink()
     except OSError:
-        raise ValueError(f"--json {str(path)!r}: the folder {str(folder)!r} is not writable; "
+        raise ValueError(f"{flag} {str(path)!r}: the folder {str(folder)!r} is not writable; "
                          f"expected a writable path") from None
     return path
 

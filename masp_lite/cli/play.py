@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from ..evaluation.tables import cell
 from ..viz.play import play
-from .evaluate import split_sets
+from .evaluate import check_writable, split_sets
 
 __all__ = ["add_arguments", "run", "EXAMPLES"]
 
@@ -32,6 +32,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     overrides, options = split_sets(args.set, args.method)
+    check_writable(args.out, "--out", "episode.gif")  # before the episode is recorded, not after
     path, result = play(args.method, args.scenario, args.out, seed=args.seed, overrides=overrides,
                         method_options=options, goals=args.goals)
     steps = "\\ (never solved)" if result["steps"] is None else f"{result['steps']:.0f}"

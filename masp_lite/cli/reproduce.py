@@ -24,7 +24,7 @@ from pathlib import Path
 
 from ..reproduction import REPO_ROOT, RESULTS_DIR
 from ..reproduction.plan import describe, load_plan, read_plan, run_plan
-from ..reproduction.reproduce import TABLES, build, evaluate_records, load_records, render
+from ..reproduction.reproduce import TABLES, build, evaluate_records, load_records, render, text_legend
 
 __all__ = ["add_arguments", "run", "EXAMPLES"]
 
@@ -45,7 +45,9 @@ LEFT_AS_SHIPPED = ("The shipped MASP (mpe-5 and mpe-20, mpe-50 zero-shot) was tr
 def add_arguments(parser) -> None:
     parser.add_argument("--table", choices=list(TABLES), action="append", default=None,
                         help="a table to print (repeatable; default: every table)")
-    parser.add_argument("--format", default="markdown", choices=["markdown", "text", "latex"])
+    parser.add_argument("--format", default=None, choices=["markdown", "text", "latex"],
+                        help="text (at most 100 columns; the default in a terminal), markdown (the default when "
+                             "the output is a file or a pipe) or latex")
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--evaluate", action="store_true", help="evaluate the methods now, 3 seeds x 100 episodes")
     mode.add_argument("--quick", action="store_true", help="evaluate the methods now, 3 seeds x 4 episodes")
@@ -104,7 +106,10 @@ def run(args) -> int:
         records = evaluate_records(names, episodes=4 if args.quick else 100, progress=True)
     else:
         records = load_records(args.records or RESULTS_DIR)
+    fmt = args.format or ("text" if sys.stdout.isatty() else "markdown")
     for name in names:
-        print(render(build(name, records, latex=args.format == "latex"), args.format))
+        print(render(build(name, records, latex=fmt == "latex"), fmt))
         print()
+    if fmt == "text":
+        print("\n".join(text_legend()))
     return 0

@@ -288,7 +288,7 @@ def check(learner_fn: Callable, reference_fn: Callable, inputs, name: str, *,
     ``AssertionError`` after printing (for nbgrader's graded cells).
 
     While ``learner_fn`` runs, ``reference_fn`` and the library objects in ``hide`` (what a
-    notebook-defined reference wraps, e.g. ``hide=[assignment.bottleneck]``) are
+    notebook-defined reference wraps, e.g. ``hide=[team.bottleneck]``) are
     :func:`unavailable`: an answer that calls the library's version fails, and says so.
     """
     if not callable(learner_fn) or not callable(reference_fn):

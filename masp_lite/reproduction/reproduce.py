@@ -19,8 +19,11 @@ note under the table says which seeds.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 import re
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,7 +35,8 @@ from ..weights import base_scenario, read_manifest, trained_preset
 from . import KEPT_DIR, RESULTS_DIR
 from .paper import PAPER
 
-__all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "pick", "pool", "training_seed", "fill_blocks",
+__all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "validate_record", "pick", "pool",
+           "training_seed", "fill_blocks", "text_legend",
            "evaluation_jobs", "evaluate_records", "render", "build"]
 
 _MPE_COLUMNS = ("h-orca", "h-rrtstar", "h-voronoi", "h-mappo", "mappo", "darl1n", "htamp", "mage-x", "masp")
@@ -72,9 +76,14 @@ def load_records(root=RESULTS_DIR) -> list[dict]:
         raise ValueError(f"records: expected a folder of evaluate records such as results/, got {str(root)!r}{where}")
     out = []
     for path in sorted(root.rglob("*.json")):
-        rec = json.loads(path.read_text())
-        if isinstance(rec, dict) and {"method", "scenario", "seeds", "sr"} <= set(rec):
-            out.append({**rec, "path": str(path)})
+        try:
+            rec = json.loads(path.read_bytes())
+        except (ValueError, UnicodeDecodeError) as e:  # empty, truncated or binary
+            raise ValueError(f"{path}: expected a JSON evaluation record, could not parse it ({e})") from None
+        if not isinstance(rec, dict):
+            raise ValueError(f"{path}: expected a JSON object (an evaluation record), got a {type(rec).__name__}")
+        if "method" in rec and ({"seeds", "sr", "steps", "episodes_per_seed"} & set(rec)):  # meant as a record
+            out.append({**validate_record(rec, path), "path": str(path)})
         elif isinstance(rec, dict) and "scenario" in rec and rec.get("episodes"):  # a bench planners record
             for method, v in rec.items():
                 if isinstance(v, dict) and "ms" in v:
@@ -82,6 +91,62 @@ def load_records(root=RESULTS_DIR) -> list[dict]:
                                 "world": rec.get("world", MPE2_WORLD),
                                 "decision_ms": v["ms"], "path": str(path)})
     return out
+
+
+_STATS = ("sr", "steps", "cr", "decision_ms")
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def validate_record(rec, path) -> dict:
+    """``rec`` when it is a well-formed ``evaluate`` record of a known method and preset; else one ValueError.
+
+    Checked: the keys, their types, the ranges (SR in [0, 1], Steps in [0, horizon] or ``None``
+    when nothing was solved, CR and decision time >= 0, standard deviations >= 0, all finite),
+    seeds (distinct ints >= 0), episodes, and the world the record names against the one its
+    scenario and overrides make. The error names the file and the field."""
+    def bad(field_, expected, got):
+        raise ValueError(f"{path}: field {field_!r}: expected {expected}, got {got!r}")
+
+    if not isinstance(rec, dict):
+        bad("(top level)", "a JSON object (an evaluate record)", type(rec).__name__)
+    for key in ("method", "scenario", "world", "seeds", "episodes_per_seed", *_STATS):
+        if key not in rec:
+            bad(key, "present (an evaluate record has method, scenario, world, seeds, episodes_per_seed, "
+                     "sr, steps, cr, decision_ms)", None)
+    if rec["method"] not in METHODS:
+        bad("method", f"one of {sorted(METHODS)}", rec["method"])
+    overrides = rec.get("overrides", {})
+    if not isinstance(overrides, dict):
+        bad("overrides", "an object of scenario overrides", overrides)
+    try:
+        sc = get_scenario(rec["scenario"], **overrides)
+    except (ValueError, TypeError) as e:
+        bad("scenario", "a known preset with valid overrides", f"{rec['scenario']} ({e})")
+    if rec["world"] != sc.world:
+        bad("world", f"the world its scenario and overrides make, {sc.world}", rec["world"])
+    seeds = rec["seeds"]
+    if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool)
+                                                            and s >= 0 for s in seeds) or len(set(seeds)) < len(seeds):
+        bad("seeds", "a non-empty list of distinct ints >= 0", seeds)
+    n = rec["episodes_per_seed"]
+    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+        bad("episodes_per_seed", "a positive int", n)
+    ranges = {"sr": (0.0, 1.0), "steps": (0.0, float(sc.horizon)), "cr": (0.0, math.inf),
+              "decision_ms": (0.0, math.inf)}
+    for key, (lo, hi) in ranges.items():
+        stat = rec[key]
+        if not isinstance(stat, dict) or set(stat) != {"mean", "std"}:
+            bad(key, '{"mean": number, "std": number}', stat)
+        if key == "steps" and stat["mean"] is None and stat["std"] is None:
+            continue  # no episode reached SR 1: the paper's backslash
+        if not _number(stat["mean"]) or not lo <= stat["mean"] <= hi:
+            bad(f"{key}.mean", f"a finite number in [{lo:g}, {hi:g}]", stat["mean"])
+        if not _number(stat["std"]) or stat["std"] < 0:
+            bad(f"{key}.std", "a finite number >= 0", stat["std"])
+    return rec
 
 
 def _preset_batched(rec: dict) -> bool:
@@ -313,6 +378,11 @@ def table_ablation(name: str, records, latex=False) -> Table:
     return _metric_table(name, _ABLATION_TITLES[name], ("mpe-20",), columns, records, latex, paper, matched=True)
 
 
+def _fewer_text(cut: float) -> str:
+    """"12.3 % fewer", or "1.4 % more" when the cut is negative (never "-1.4 % fewer")."""
+    return f"{cut:.1f} % fewer" if cut >= 0 else f"{-cut:.1f} % more"
+
+
 def _steps(rec):
     return None if rec is None else rec["steps"]["mean"]
 
@@ -340,7 +410,7 @@ def table_ablation_claims(records, latex=False) -> Table:
 
     def steps_claim(claim, table, worse, base, rule):
         def say(w, b):  # "more": the paper's "% fewer"; "near": the signed difference from the base
-            return f"{w:.2f} vs {b:.2f} " + (f"({_cut(w, b):.1f} % fewer)" if rule is more else
+            return f"{w:.2f} vs {b:.2f} " + (f"({_fewer_text(_cut(w, b))})" if rule is more else
                                               f"({100.0 * (w - b) / b:+.1f} %)")
         ours_w, ours_b = _steps(get(table, worse)), _steps(get(table, base))
         theirs = say(paper(table, worse)["steps"], paper(table, base)["steps"])
@@ -465,7 +535,8 @@ def table_claims(records, latex=False) -> Table:
             "—" if masp is None or hg is None else f"{masp:.2f} vs {hg:.2f}",
             None if masp is None or hg is None else masp < hg)
     _rl_claims(records, add, paper_steps)
-    for sc, target in [("mpe-50", 19.12), *((v, 47.87) for v in _VARYING)]:
+    headline = round(_cut(paper_steps("mpe-50", "h-rrtstar"), paper_steps("mpe-50", "masp")), 2)  # 19.12 %
+    for sc, target in [("mpe-50", headline), *((v, 47.87) for v in _VARYING)]:
         masp = _steps(pick(records, "masp", sc))
         rrt = _cut(_steps(pick(records, "h-rrtstar", sc)), masp)
         known = [v for v in (_steps(pick(records, m, sc)) for m in _PLANNERS) if v is not None]
@@ -659,12 +730,76 @@ def build(name: str, records, latex: bool = False) -> Table:
 def render(table: Table, fmt: str = "markdown") -> str:
     """The table as ``text``, ``markdown`` or ``latex``, with its title and world on top."""
     caption = f"{table.title} — world: {world_name(table.world)}"
+    if fmt == "text" and len(caption) > WIDTH:
+        caption = f"{table.title}\nworld: {world_name(table.world)}"
     body = render_rows(table.head, table.rows, fmt)
     if fmt == "latex":
         return "\n".join([body, f"% {caption}", *(f"% {n}" for n in table.notes)])
     if fmt == "text":
-        return "\n".join([caption, body, *table.notes])
+        return "\n".join([caption, *_text_chunks(table), *_compact_notes(table.notes)])
     return "\n".join([f"**{caption}**", "", body, *([""] + [f"- {n}" for n in table.notes] if table.notes else [])])
+
+
+WIDTH = 100
+"""Columns a ``text`` table fits in: wider tables are split into column groups, each with the key columns."""
+CELL = 48
+"""Longest ``text`` cell on one line; a longer one (a claim, its figures) is wrapped."""
+LEGEND = ("Legend: per metric, our number above the paper's; ↓ lower is better, ↑ higher is better; "
+          "\\ no episode reached SR 1 (Steps undefined, the paper's mark); — no record here; "
+          "blank: the paper gives no number")
+"""The one line under ``text`` output that says what the marks mean (:func:`text_legend`)."""
+
+
+def _text_chunks(table: Table) -> list[str]:
+    """The table's ``text`` rendering split into column groups of at most :data:`WIDTH` columns."""
+    keys = 3 if len(table.head) > 3 and table.head[:2] == ["Agents", "Metric"] else 1
+    rows = []
+    for row in table.rows:  # a long cell (a claim, its figures) goes on several lines
+        parts = [textwrap.wrap(c, CELL) or [""] if len(c) > CELL else [c] for c in row]
+        rows += [[p[k] if k < len(p) else "" for p in parts] for k in range(max(map(len, parts)))]
+    table = dataclasses.replace(table, rows=rows)
+    cols = list(zip(table.head, *table.rows)) if table.rows else [[h] for h in table.head]
+    width = [max(len(c) for c in col) + 2 for col in cols]
+    groups, current, used = [], [], sum(width[:keys])
+    for j in range(keys, len(cols)):
+        if current and used + width[j] > WIDTH:
+            groups.append(current)
+            current, used = [], sum(width[:keys])
+        current.append(j)
+        used += width[j]
+    groups.append(current)
+    out = []
+    for g in groups:
+        idx = list(range(keys)) + g
+        out.append(render_rows([table.head[i] for i in idx],
+                               [[row[i] if i < len(row) else "" for i in idx] for row in table.rows], "text"))
+    return out
+
+
+def _compact_notes(notes) -> list[str]:
+    """Notes of the form "WHERE: WHAT" said once per WHAT ("WHAT: WHERE; WHERE"), wrapped at :data:`WIDTH`."""
+    grouped = {}
+    for n in notes:
+        where, sep, what = n.rpartition(": ")
+        grouped.setdefault(what if sep else n, []).append(where if sep else "")
+    lines = []
+    for what, wheres in grouped.items():
+        by_label = {}  # "mpe-5, MASP" and "mpe-20, MASP" -> MASP (mpe-5, mpe-20)
+        for w in filter(None, wheres):
+            sc, sep, label = w.partition(", ")
+            by_label.setdefault(label if sep else w, []).append(sc if sep else "")
+        by_places = {}
+        for label, places in by_label.items():
+            by_places.setdefault(tuple(p for p in places if p), []).append(label)
+        said = "; ".join(", ".join(labels) + (f" ({', '.join(places)})" if places else "")
+                         for places, labels in by_places.items())
+        lines += textwrap.wrap(f"{what}: {said}" if said else what, WIDTH, subsequent_indent="  ")
+    return lines
+
+
+def text_legend() -> list[str]:
+    """:data:`LEGEND` wrapped at :data:`WIDTH` columns."""
+    return textwrap.wrap(LEGEND, WIDTH, subsequent_indent="  ")
 
 
 BLOCK = re.compile(r"(<!-- reproduce ([\w-]+) -->\n)(.*?)(\n<!-- /reproduce -->)", flags=re.S)

@@ -188,6 +188,10 @@ def read_weights(path) -> dict:
     entry = packaged.get(path.resolve())
     if entry is not None and sha256(path) != entry["sha256"]:
         raise ValueError(f"checkpoint {str(path)!r}: contents differ from manifest.json (corrupt or replaced)")
+    run = _run_manifest(path)
+    if run is not None and sha256(path) != run["weights_sha256"]:
+        raise ValueError(f"checkpoint {str(path)!r}: contents differ from the SHA-256 its run recorded in "
+                         f"{str(path.parent / 'manifest.json')!r} (corrupt or replaced)")
     data = file_bytes(path)
     head = data[:4]
     if not head:
@@ -206,7 +210,22 @@ def read_weights(path) -> dict:
     if not isinstance(rec, dict) or rec.get("format") != FORMAT:
         raise ValueError(f"checkpoint {str(path)!r}: expected format {FORMAT!r}, got "
                          f"{rec.get('format') if isinstance(rec, dict) else type(rec).__name__!r}")
+    for name, t in (rec.get("state_dict") or {}).items():
+        if isinstance(t, torch.Tensor) and t.is_floating_point() and not bool(torch.isfinite(t).all()):
+            raise ValueError(f"checkpoint {str(path)!r}: parameter {name!r} holds NaN or inf; expected finite weights")
     return rec
+
+
+def _run_manifest(path: Path) -> dict | None:
+    """The manifest of the finished training run whose ``weights.pt`` is ``path``, when it records a hash."""
+    manifest = path.parent / "manifest.json"
+    if path.name != "weights.pt" or not manifest.is_file():
+        return None
+    try:
+        m = json.loads(manifest.read_text())
+    except (ValueError, OSError):
+        return None
+    return m if isinstance(m, dict) and isinstance(m.get("weights_sha256"), str) else None
 
 
 def load_weights(path=None, scenario=None, any_scenario: bool = False):

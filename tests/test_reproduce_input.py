@@ -1,0 +1,74 @@
+"""reproduce trusts no record: each is validated on load; its text output fits a terminal."""
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from masp_lite.__main__ import main
+from masp_lite.reproduction.reproduce import _fewer_text, load_records, validate_record
+
+ROOT = Path(__file__).resolve().parents[1]
+GOOD = json.loads((ROOT / "results" / "mpe" / "masp_mpe-5.json").read_text())
+
+
+def _folder(tmp_path, rec=None, raw=None):
+    folder = tmp_path / "records"
+    folder.mkdir(exist_ok=True)
+    path = folder / "r.json"
+    path.write_bytes(raw if raw is not None else json.dumps(rec).encode())
+    return folder, path
+
+
+@pytest.mark.parametrize("change,field", [
+    (lambda r: r["steps"].update(mean=-5.0), "steps.mean"),
+    (lambda r: r["steps"].update(mean=float("nan")), "steps.mean"),
+    (lambda r: r["sr"].update(mean=7.5), "sr.mean"),
+    (lambda r: r["sr"].update(mean="0.99"), "sr.mean"),
+    (lambda r: r["cr"].update(std=-1.0), "cr.std"),
+    (lambda r: r.pop("sr"), "sr"),
+    (lambda r: r.update(scenario="mpe-7"), "scenario"),
+    (lambda r: r.update(method="nope"), "method"),
+    (lambda r: r.update(seeds=[0, 0]), "seeds"),
+    (lambda r: r.update(world={"integration": "other"}), "world"),
+])
+def test_a_bad_record_is_one_error_naming_the_file_and_the_field(tmp_path, change, field):
+    rec = json.loads(json.dumps(GOOD))
+    change(rec)
+    folder, path = _folder(tmp_path, rec)
+    with pytest.raises(ValueError, match=rf"{path}: field '{field}': expected"):
+        load_records(folder)
+
+
+@pytest.mark.parametrize("raw", [b"", json.dumps(GOOD).encode()[:40], b"\x89PNG\x00\xff", b"[1, 2]"])
+def test_an_unreadable_or_non_object_file_is_one_error_naming_it(tmp_path, raw):
+    folder, path = _folder(tmp_path, raw=raw)
+    with pytest.raises(ValueError, match=rf"{path}: expected a JSON"):
+        load_records(folder)
+
+
+def test_the_shipped_records_are_valid_and_a_bad_one_stops_reproduce(tmp_path, capsys):
+    assert len(load_records(ROOT / "results")) >= 200
+    assert validate_record(GOOD, "x") is GOOD
+    folder = tmp_path / "results"
+    shutil.copytree(ROOT / "results" / "mpe", folder / "mpe")
+    bad = json.loads(json.dumps(GOOD))
+    bad["steps"]["mean"] = -5.0
+    (folder / "mpe" / "masp_mpe-5.json").write_text(json.dumps(bad))
+    assert main(["reproduce", "--table", "claims", "--records", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert "masp_mpe-5.json: field 'steps.mean'" in err and "Traceback" not in err
+
+
+def test_text_output_fits_100_columns_with_one_legend_and_each_note_once(capsys):
+    assert main(["reproduce", "--format", "text"]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    assert max(map(len, lines)) <= 100
+    assert out.count("Legend:") == 1 and "\\ no episode reached SR 1" in " ".join(out.split())
+    notes = [line for line in lines if line.startswith("mean over training seeds")]
+    assert len(notes) == len(set(notes)) and len(notes) <= 8   # one line per table, not one per column
+
+
+def test_a_negative_cut_reads_as_more():
+    assert _fewer_text(12.34) == "12.3 % fewer" and _fewer_text(-1.4) == "1.4 % more"
