@@ -109,3 +109,10 @@ def test_play_out_that_cannot_be_written_is_one_clear_error_before_the_episode(t
     assert main(["play", "--method", "h-greedy", "--scenario", "mpe-5", "--out", out]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: --out") and words in err and "Traceback" not in err
+
+
+def test_a_3d_episodes_numbers_are_the_evaluations_of_the_same_episode(tmp_path):
+    from masp_lite.viz.play import play
+    path, got = play("h-greedy", "drone-5", tmp_path / "ep.html", seed=1, overrides={"horizon": 60})
+    rec = evaluate("h-greedy", "drone-5", episodes=1, seeds=[1], overrides={"horizon": 60}, num_envs=1)
+    assert path.read_text().startswith("<") and got == {k: rec[k]["mean"] for k in ("sr", "steps", "cr")}

@@ -4,6 +4,7 @@ import re
 import matplotlib
 import numpy as np
 import pytest
+import torch
 from PIL import Image
 
 from masp_lite.__main__ import main
@@ -71,15 +72,21 @@ def test_html_and_drone_playback_go_to_the_3d_exporter(tmp_path, monkeypatch):
     import sys
     import types
 
+    from masp_lite.evaluation.metrics import EpisodeLog
+
     calls = []
+    solved = torch.tensor([[[False], [True]]])  # one landmark, covered after the first step
+    log = EpisodeLog(solved, solved, torch.zeros(1, 1, dtype=torch.long), torch.ones(1, 2, 1, dtype=torch.bool),
+                     varying=False, horizon=1)
     fake = types.ModuleType("masp_lite.viz.meshcat3d")
-    fake.play_to_html = lambda method, scenario, out, seed=0, **overrides: calls.append(
-        (method, scenario, out, seed, overrides))
+    fake.record_episode = lambda method, scenario, seed=0, **overrides: calls.append(
+        (method, scenario, seed, overrides)) or {"log": log}
+    fake.episode_html = lambda episode: "<html>3-D</html>"
     monkeypatch.setitem(sys.modules, "masp_lite.viz.meshcat3d", fake)
     out = tmp_path / "ep.html"
     assert main(["play", "--method", "h-greedy", "--scenario", "drone-5", "--out", str(out),
                  "--seed", "2", "--set", "horizon=30"]) == 0
-    assert calls == [("h-greedy", "drone-5", str(out), 2, {"horizon": 30})]
+    assert calls == [("h-greedy", "drone-5", 2, {"horizon": 30})] and out.read_text() == "<html>3-D</html>"
     # method options cannot reach the exporter: one clear error instead of a silent drop
     assert main(["play", "--method", "random", "--scenario", "mpe-5", "--out", str(out),
                  "--set", "seed=1"]) == 2

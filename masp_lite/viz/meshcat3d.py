@@ -89,11 +89,15 @@ def record_episode(method, scenario, seed: int = 0, stride: int = _FPS_STEPS, **
 
     Returns numpy arrays: ``pos`` (T, N, 3), ``quat`` (T, N, 4), ``alive`` (T, N),
     ``reached`` (T, N), ``landmark_pos`` (N, 3), plus ``dt`` (seconds per frame),
-    ``scenario`` (the Scenario), ``crash_pos`` (N, 3, NaN if none), ``covered`` at the end
-    and ``method`` (the name, or the factory's ``__name__``).
+    ``scenario`` (the Scenario), ``crash_pos`` (N, 3, NaN if none), ``covered`` at the end,
+    ``method`` (the name, or the factory's ``__name__``) and ``log``: the episode's
+    :class:`~masp_lite.evaluation.metrics.EpisodeLog` at every step (SR, Steps and CR as evaluated).
     """
+    import torch
+
     from ..envs import make
     from ..envs.drone_model import CONTROL_DT
+    from ..evaluation.metrics import EpisodeLog
     from ..policies import make_policy
 
     if not isinstance(stride, int) or stride < 1:
@@ -106,18 +110,26 @@ def record_episode(method, scenario, seed: int = 0, stride: int = _FPS_STEPS, **
     policy.reset(obs)
     frames = [obs]
     crashed = np.zeros(world.num_agents, bool)
+    every = {k: [obs[k][0].clone()] for k in ("covered", "reached", "alive")}  # each step, for the metrics
+    contacts = []
     for t in range(world.horizon):
         obs, info = world.step(policy.act(obs))
         crashed |= (info["agent_collisions"][0] > 0).numpy()
+        for k in every:
+            every[k].append(obs[k][0].clone())
+        contacts.append(info["collisions"][0])
         if (t + 1) % stride == 0 or t + 1 == world.horizon:
             frames.append(obs)
+    log = EpisodeLog(*(torch.stack(every[k])[None] for k in ("covered", "reached")),
+                     torch.stack(contacts).long()[None], torch.stack(every["alive"])[None],
+                     varying=bool(world.scenario.varying), horizon=int(world.horizon))
     pick = lambda k: np.stack([f[k][0].detach().cpu().numpy() for f in frames])  # noqa: E731
     pos, alive = pick("agent_pos").astype(np.float64), pick("alive")
     crash_pos = np.where(crashed[:, None], pos[-1], np.nan)
     return {"pos": pos, "quat": pick("agent_quat").astype(np.float64), "alive": alive,
             "reached": pick("reached"), "covered": frames[-1]["covered"][0].numpy(), "crashed": crashed,
             "landmark_pos": frames[0]["landmark_pos"][0].numpy().astype(np.float64), "crash_pos": crash_pos,
-            "dt": CONTROL_DT * stride, "scenario": world.scenario,
+            "dt": CONTROL_DT * stride, "scenario": world.scenario, "log": log,
             "method": method if isinstance(method, str) else getattr(method, "__name__", type(method).__name__)}
 
 

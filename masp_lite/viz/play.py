@@ -4,7 +4,7 @@
   the method, with a colour key, short trails and — with ``goals=True`` — a line from each
   agent to the goal the policy currently pursues;
 * ``.html``, and every drone scenario: a standalone 3-D meshcat page from
-  :func:`masp_lite.viz.meshcat3d.play_to_html`.
+  :func:`masp_lite.viz.meshcat3d.record_episode` and :func:`~masp_lite.viz.meshcat3d.episode_html`.
 
 :func:`play` also returns the episode's SR, Steps and CR, computed by the evaluation's own
 metrics (:mod:`masp_lite.evaluation.metrics`); a 2-D animation ends at the step the episode is
@@ -67,10 +67,9 @@ def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_
             raise ValueError(f"3-D playback is unavailable ({e}); expected masp_lite.viz.meshcat3d "
                              "and meshcat to be installed, or a .gif/.mp4 output") from None
         out.parent.mkdir(parents=True, exist_ok=True)
-        meshcat3d.play_to_html(method, scenario, str(out), seed=seed, **overrides)
-        from ..evaluation import evaluate  # the same episode (world 0, seed ``seed``), measured as evaluate does
-        rec = evaluate(method, scenario, episodes=1, seeds=[seed], overrides=overrides, num_envs=1)
-        return out, {k: rec[k]["mean"] for k in ("sr", "steps", "cr")}
+        episode = meshcat3d.record_episode(method, scenario, seed=seed, **overrides)
+        out.write_text(meshcat3d.episode_html(episode), encoding="utf-8")
+        return out, summary(episode["log"])
     from .anim2d import animate, record, save
 
     factory = get_factory(method)
