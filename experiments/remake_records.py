@@ -4,11 +4,11 @@ Usage (from the repository root)::
 
     python -m experiments.remake_records --methods masp gm-mlp [--only mpe-20 ...] [--dry-run] [--budget-s 120]
 
-Every record under ``results/`` (a JSON file with ``method``, ``scenario``, ``seeds`` and
-``sr``) whose method is listed is evaluated again exactly as ``tests/test_records.py``
-re-evaluates it — its world definition, seeds, episodes, batch size, overrides, options,
-weights file and thread count — and, when SR, Steps or CR differ, rewritten with the new
-numbers (the rest of the record kept). ``--only`` keeps the records of some scenarios;
+Every record under ``results/`` whose method is listed is evaluated again exactly as
+``tests/test_records.py`` re-evaluates it (:func:`masp_lite.reproduction.reproduce.re_evaluate`:
+its world definition, seeds, episodes, batch size, overrides, options, weights file and
+thread count) and, when SR, Steps or CR differ, rewritten with the new numbers (the rest of
+the record kept). ``--only`` keeps the records of some scenarios;
 ``--budget-s`` skips records whose estimated cost is higher (as the test's time rule);
 ``--dry-run`` reports what differs without writing. Prints one line per record: old and new
 Steps / SR / CR.
@@ -20,48 +20,15 @@ import json
 import os
 from pathlib import Path
 
-import torch
-
-from masp_lite.envs import get_scenario
-from masp_lite.evaluation import evaluate
+from masp_lite.reproduction.reproduce import load_records, re_evaluate, re_evaluation_cost_s
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def records(methods, only=()):
     """(path, record) of the records of ``methods`` (and of scenarios ``only``, when given), sorted by path."""
-    out = []
-    for path in sorted((ROOT / "results").rglob("*.json")):
-        rec = json.loads(path.read_text())
-        if isinstance(rec, dict) and {"method", "scenario", "seeds", "sr"} <= set(rec) and rec["method"] in methods \
-                and (not only or rec["scenario"] in only):
-            out.append((path, rec))
-    return out
-
-
-def cost_s(rec) -> float:
-    """Seconds a re-evaluation takes, roughly (decision time and the world's, over every world-step)."""
-    sc = get_scenario(rec["scenario"], **rec.get("overrides", {}))
-    per_step = rec["decision_ms"]["mean"] / 1e3 + 1e-5 * sc.num_agents
-    return per_step * rec["episodes_per_seed"] * len(rec["seeds"]) * sc.horizon
-
-
-def remake(rec) -> dict:
-    """The record evaluated again as it was made; returns the new record (same keys)."""
-    options = dict(rec.get("method_options", {}))
-    threads = torch.get_num_threads()
-    torch.set_num_threads(rec.get("threads", threads))
-    try:
-        new = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
-                       overrides={**rec["world"], **rec.get("overrides", {})}, method_options=options,
-                       num_envs=rec.get("num_envs"))
-    finally:
-        torch.set_num_threads(threads)
-    if "overrides" not in rec:  # the world definition was passed as overrides only to rebuild it
-        new.pop("overrides", None)
-    elif new.get("overrides") != rec["overrides"]:
-        new["overrides"] = rec["overrides"]
-    return new
+    return [(Path(r.pop("path")), r) for r in load_records(ROOT / "results")
+            if not r.get("bench") and r["method"] in methods and (not only or r["scenario"] in only)]
 
 
 def _short(r) -> str:
@@ -79,10 +46,10 @@ def main(argv=None) -> int:
     os.chdir(ROOT)  # checkpoint paths in records are relative to the repository root
     for path, rec in records(a.methods, a.only):
         name = path.relative_to(ROOT)
-        if a.budget_s is not None and cost_s(rec) > a.budget_s:
-            print(f"{name}: skipped (estimated {cost_s(rec):.0f} s)", flush=True)
+        if a.budget_s is not None and re_evaluation_cost_s(rec) > a.budget_s:
+            print(f"{name}: skipped (estimated {re_evaluation_cost_s(rec):.0f} s)", flush=True)
             continue
-        new = remake(rec)
+        new = re_evaluate(rec)
         same = all(new[k] == rec[k] for k in ("sr", "steps", "cr"))
         print(f"{name}: {_short(rec)} -> {_short(new)}{'  (same)' if same else ''}", flush=True)
         if not same and not a.dry_run:

@@ -16,36 +16,16 @@ import os
 from pathlib import Path
 
 import pytest
-import torch
 
 from masp_lite.envs import MPE2_WORLD, get_scenario
-from masp_lite.evaluation import evaluate
+from masp_lite.reproduction.reproduce import load_records, re_evaluate, re_evaluation_cost_s
 from masp_lite.weights import sha256
 
 ROOT = Path(__file__).resolve().parents[1]
 BUDGET_S = 30.0
 
 
-def _records():
-    out = []
-    for path in sorted((ROOT / "results").rglob("*.json")):
-        rec = json.loads(path.read_text())
-        if isinstance(rec, dict) and {"method", "scenario", "seeds", "sr"} <= set(rec):
-            out.append((path, rec))
-    return out
-
-
-RECORDS = _records()
-
-
-ENV_S_PER_AGENT = 1e-5  # the world's own cost per agent and world-step, batched (a rough figure for this machine)
-
-
-def _cost_s(rec) -> float:
-    """Seconds a re-evaluation takes, roughly: the recorded decision time plus the world's, over every world-step."""
-    sc = get_scenario(rec["scenario"], **rec.get("overrides", {}))
-    per_step = rec["decision_ms"]["mean"] / 1e3 + ENV_S_PER_AGENT * sc.num_agents
-    return per_step * rec["episodes_per_seed"] * len(rec["seeds"]) * sc.horizon
+RECORDS = [(Path(r.pop("path")), r) for r in load_records(ROOT / "results") if not r.get("bench")]
 
 
 def test_the_records_are_found_and_name_their_world():
@@ -58,20 +38,13 @@ def test_the_records_are_found_and_name_their_world():
 @pytest.mark.slow
 @pytest.mark.parametrize("path,rec", RECORDS, ids=[str(p.relative_to(ROOT / "results")) for p, _ in RECORDS])
 def test_record_re_evaluates_identically(path, rec, monkeypatch):
-    if os.environ.get("MASP_LITE_ALL_RECORDS") != "1" and _cost_s(rec) > BUDGET_S:
-        pytest.skip(f"estimated {_cost_s(rec):.0f} s > {BUDGET_S:g} s; MASP_LITE_ALL_RECORDS=1 runs it")
+    if os.environ.get("MASP_LITE_ALL_RECORDS") != "1" and re_evaluation_cost_s(rec) > BUDGET_S:
+        pytest.skip(f"estimated {re_evaluation_cost_s(rec):.0f} s > {BUDGET_S:g} s; MASP_LITE_ALL_RECORDS=1 runs it")
     options = dict(rec.get("method_options", {}))
     if "checkpoint" in options:
         assert sha256(ROOT / options["checkpoint"]) == rec["checkpoint_sha256"], "the weights file changed"
         monkeypatch.chdir(ROOT)  # checkpoint paths are relative to the repository root
-    overrides = {**rec["world"], **rec.get("overrides", {})}  # the world it was made in, whatever the preset's
-    threads = torch.get_num_threads()
-    torch.set_num_threads(rec.get("threads", threads))  # a float sum's rounding depends on it
-    try:
-        again = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
-                         overrides=overrides, method_options=options, num_envs=rec.get("num_envs"))  # as made
-    finally:
-        torch.set_num_threads(threads)
+    again = re_evaluate(rec)  # in the world, batch and thread count it was made with
     for key in ("sr", "steps", "cr"):
         assert again[key] == rec[key], f"{key}: {again[key]} now, {rec[key]} in {path.name}"
 

@@ -288,9 +288,10 @@ def test_perturbed_joint_sample_draws_distinct_goals_with_unrestricted_log_proba
 
 def test_remake_records_selects_by_method_and_scenario_and_rebuilds_a_record_as_made():
     from experiments import remake_records
+    from masp_lite.reproduction.reproduce import re_evaluate
     found = remake_records.records(["gm-mlp"], ["mpe-20"])
     assert found and all(r["method"] == "gm-mlp" and r["scenario"] == "mpe-20" for _, r in found)
     path, rec = next((p, r) for p, r in remake_records.records(["h-greedy"], ["mpe-5"]) if "overrides" not in r)
     rec = {**rec, "seeds": rec["seeds"][:1], "episodes_per_seed": 2}
-    new = remake_records.remake(rec)
+    new = re_evaluate(rec)
     assert "overrides" not in new and new["world"] == rec["world"] and new["seeds"] == rec["seeds"]

@@ -27,6 +27,8 @@ import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import torch
+
 from ..envs import MPE2_WORLD, get_scenario, world_name
 from ..evaluation import evaluate
 from ..evaluation.tables import cell, render_rows
@@ -35,7 +37,8 @@ from ..weights import base_scenario, read_manifest, trained_preset
 from . import KEPT_DIR, RESULTS_DIR
 from .paper import PAPER
 
-__all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "validate_record", "pick", "pool",
+__all__ = ["Table", "TABLES", "PAPER", "RESULTS_DIR", "load_records", "validate_record", "re_evaluate",
+           "re_evaluation_cost_s", "pick", "pool",
            "training_seed", "fill_blocks", "text_legend",
            "evaluation_jobs", "evaluate_records", "render", "build"]
 
@@ -147,6 +150,36 @@ def validate_record(rec, path) -> dict:
         if not _number(stat["std"]) or stat["std"] < 0:
             bad(f"{key}.std", "a finite number >= 0", stat["std"])
     return rec
+
+
+ENV_S_PER_AGENT = 1e-5
+"""The world's own cost per agent and world-step, batched (a rough figure for a laptop CPU)."""
+
+
+def re_evaluation_cost_s(rec: dict) -> float:
+    """Seconds re-evaluating a record takes, roughly: the recorded decision time plus the world's, every world-step."""
+    sc = get_scenario(rec["scenario"], **rec.get("overrides", {}))
+    per_step = rec["decision_ms"]["mean"] / 1e3 + ENV_S_PER_AGENT * sc.num_agents
+    return per_step * rec["episodes_per_seed"] * len(rec["seeds"]) * sc.horizon
+
+
+def re_evaluate(rec: dict) -> dict:
+    """``rec`` evaluated again exactly as it was made: its world definition, seeds, episodes, batch size,
+    overrides, options, weights file (paths relative to the working folder) and torch thread count.
+
+    Returns the new record, whose ``overrides`` are the record's own (the world definition is
+    passed only to rebuild the world it was made in)."""
+    options = dict(rec.get("method_options", {}))
+    threads = torch.get_num_threads()
+    torch.set_num_threads(rec.get("threads", threads))  # a float sum's rounding depends on it
+    try:
+        new = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
+                       overrides={**rec["world"], **rec.get("overrides", {})}, method_options=options,
+                       num_envs=rec.get("num_envs"))
+    finally:
+        torch.set_num_threads(threads)
+    new.pop("overrides", None)
+    return {**new, **({"overrides": rec["overrides"]} if "overrides" in rec else {})}
 
 
 def _preset_batched(rec: dict) -> bool:
