@@ -19,12 +19,11 @@ Prints Steps, SR and CR per decoding (validation layouts only: evaluation seeds 
 """
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 import torch
 from scipy.optimize import linear_sum_assignment
 
+from experiments.mpe50_goals import validation_parser
 from masp_lite.envs import make
 from masp_lite.evaluation.metrics import collision_rate, steps, success_rate
 from masp_lite.evaluation.rollouts import rollout
@@ -67,11 +66,7 @@ class Decoded(MASPPolicy):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--checkpoints", nargs="+", required=True)
-    p.add_argument("--scenario", default="mpe-50")
-    p.add_argument("--seeds", nargs="+", type=int, default=[100, 101, 102])
-    p.add_argument("--episodes", type=int, default=100)
+    p = validation_parser(__doc__)
     p.add_argument("--decodes", nargs="+", default=["joint", "squared", "minmax", "probability"],
                    choices=["joint", "squared", "minmax", "probability"])
     a = p.parse_args(argv)

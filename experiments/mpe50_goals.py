@@ -86,13 +86,18 @@ def measure(scenario, checkpoint, seeds, episodes):
     return rows
 
 
-def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def validation_parser(doc: str) -> argparse.ArgumentParser:
+    """The options of the N = 50 validation scripts: weights files, scenario, validation seeds, episodes."""
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
     p.add_argument("--checkpoints", nargs="+", required=True)
     p.add_argument("--scenario", default="mpe-50")
     p.add_argument("--seeds", nargs="+", type=int, default=[100, 101, 102])
     p.add_argument("--episodes", type=int, default=100)
-    a = p.parse_args(argv)
+    return p
+
+
+def main(argv=None):
+    a = validation_parser(__doc__).parse_args(argv)
     torch.set_num_threads(1)
     print(f"{a.scenario}, seeds {a.seeds} x {a.episodes}: Steps with each goal source")
     for ck in a.checkpoints:

@@ -55,7 +55,6 @@ def test_a_state_with_non_finite_values_is_refused_naming_file_and_value(tmp_pat
 
 
 def test_a_second_run_into_the_same_folder_is_refused_and_a_stale_lock_taken_over(tmp_path):
-    import os
     import subprocess
     import sys
     out = tmp_path / "run"
@@ -74,7 +73,7 @@ def test_a_second_run_into_the_same_folder_is_refused_and_a_stale_lock_taken_ove
     with pytest.raises(ValueError, match="stopped"):  # released on an error too
         train("mpe-5", _cfg(updates=3), out, progress=False, resume=True,
               on_iteration=lambda t: (_ for _ in ()).throw(ValueError("stopped")))
-    assert not (out / ".lock").exists() and os.getpid() > 0
+    assert not (out / ".lock").exists()
 
 
 def test_an_out_folder_that_cannot_be_written_is_one_clear_error(tmp_path, capsys):
