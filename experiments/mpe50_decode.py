@@ -3,14 +3,15 @@
 Usage (from the repository root)::
 
     python -m experiments.mpe50_decode --checkpoints masp_lite/weights/mpe-20.pt [--seeds 100 101 102]
-        [--episodes 100] [--scenario mpe-50] [--decodes joint squared minmax probability]
+        [--episodes 100] [--scenario mpe-50] [--decodes sum squared minmax probability]
 
-The product decodes greedily by the distinct goals that maximise the summed log-scores
-(``joint``: ``linear_sum_assignment`` on ``-log S``). Steps waits for the last landmark, so
+The product first decoded greedily by the distinct goals that maximise the summed log-scores
+(``sum``: ``linear_sum_assignment`` on ``-log S``). Steps waits for the last landmark, so
 one agent sent on a long trip costs the whole episode; decodings that weigh the least
 confident agent more might serve Steps better with the same weights:
 
-* ``squared``: ``linear_sum_assignment`` on ``(-log S)^2`` (between sum and min-max);
+* ``squared``: ``linear_sum_assignment`` on ``(-log S)^2`` (between sum and min-max; what
+  this comparison made the product's ``joint`` decoding);
 * ``minmax``: the assignment whose least likely pick is as likely as possible (min-max of
   ``-log S``), ties broken by the summed ``-log S``;
 * ``probability``: maximise the summed scores ``S`` (not their logs).
@@ -42,7 +43,7 @@ def minmax_assignment(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return linear_sum_assignment(np.where(d <= values[lo], d, (np.abs(d).sum() + 1.0) * 2))
 
 
-COSTS = {"joint": lambda nl: nl, "squared": lambda nl: nl ** 2, "probability": lambda nl: -np.exp(-nl)}
+COSTS = {"sum": lambda nl: nl, "squared": lambda nl: nl ** 2, "probability": lambda nl: -np.exp(-nl)}
 
 
 class Decoded(MASPPolicy):
@@ -67,8 +68,8 @@ class Decoded(MASPPolicy):
 
 def main(argv=None):
     p = validation_parser(__doc__)
-    p.add_argument("--decodes", nargs="+", default=["joint", "squared", "minmax", "probability"],
-                   choices=["joint", "squared", "minmax", "probability"])
+    p.add_argument("--decodes", nargs="+", default=["sum", "squared", "minmax", "probability"],
+                   choices=["sum", "squared", "minmax", "probability"])
     a = p.parse_args(argv)
     if min(a.seeds) < 100:
         raise SystemExit("--seeds: validation layouts only (100 and above)")

@@ -12,18 +12,16 @@ default, a choice the paper leaves open (it never states how ties between agents
 broken), and keep the literal rule as ``decode="independent"`` for comparison:
 
 * **acting greedily** (evaluation, :func:`joint_argmax`): the assignment of distinct goals
-  to the alive agents that maximises ``sum_k log S_intra^k(g_k)`` — the most likely
-  conflict-free joint choice under the agents' own scores. This is scipy's
-  ``linear_sum_assignment`` on ``-log S_intra``, one call per world (the solver the
-  Hungarian reference uses, here on learned scores instead of distances);
-* **acting greedily, squared** (``decode="squared"``, :func:`joint_argmax` with ``power=2``):
-  the distinct goals minimising ``sum_k (-log S_intra^k(g_k))^2``, so that no agent is left
-  with a goal it scores poorly. Steps waits for the last landmark, so one agent sent to a
-  goal it barely chose costs more than several small compromises. On validation layouts
-  (evaluation seeds 100-102 x 100, same weights) it needs fewer Steps: mpe-50 50.13 ->
-  46.89 (training seed 0), mpe-20 24.93 -> 24.10, 27.85 -> 25.94, 24.74 -> 23.82 (seeds
-  0-2); mpe-5, mpe-20to10 and mpe-50to20 within 1 % (research log, "the Goal Matcher's
-  decoding"). It becomes the default once every record is re-made with it;
+  to the alive agents that minimises ``sum_k (-log S_intra^k(g_k))^2``. This is scipy's
+  ``linear_sum_assignment`` on the squared ``-log S_intra``, one call per world (the solver
+  the Hungarian reference uses, here on learned scores instead of distances). Squaring
+  keeps any agent from being left with a goal it scores poorly: Steps waits for the last
+  landmark, so one agent sent to a goal it barely chose costs more than several small
+  compromises. The unsquared sum (``power=1``, the most likely distinct assignment) needs
+  more Steps on validation layouts (evaluation seeds 100-102 x 100, same weights): mpe-50
+  50.13 against 46.89 squared (training seed 0), mpe-20 24.93 / 27.85 / 24.74 against
+  24.10 / 25.94 / 23.82 (seeds 0-2), drone-20 343 against 325; mpe-5, mpe-20to10 and
+  mpe-50to20 within 1 % (research log, "the Goal Matcher's decoding");
 * **sampling** (training, :func:`sequential_sample`): agents draw in a random order, each
   from its own categorical restricted to the goals not yet taken by agents earlier in
   the order (an autoregressive factorisation of a joint policy over distinct goals).
@@ -45,9 +43,8 @@ from scipy.optimize import linear_sum_assignment
 __all__ = ["DECODERS", "independent_goals", "random_goals", "joint_argmax", "sequential_sample", "conditional_logits",
            "taken_before", "MASKED"]
 
-DECODERS = ("joint", "squared", "independent")
-"""``joint``: conflict-free (default); ``squared``: conflict-free, squared costs; ``independent``: every agent
-alone, duplicates allowed."""
+DECODERS = ("joint", "independent")
+"""``joint``: conflict-free, squared costs (default); ``independent``: every agent alone, duplicates allowed."""
 
 MASKED = -1e9
 """Logit given to a goal an agent may not choose (finite, so entropies stay finite)."""
@@ -131,11 +128,12 @@ def independent_goals(logits: torch.Tensor, goal_mask: torch.Tensor | None = Non
 
 
 def joint_argmax(logits: torch.Tensor, alive: torch.Tensor, goal_mask: torch.Tensor | None = None,
-                 power: float = 1.0) -> torch.Tensor:
+                 power: float = 2.0) -> torch.Tensor:
     """Distinct goals minimising the summed ``(-log S) ** power`` of the alive agents, per world (B, N).
 
     Solved by ``linear_sum_assignment`` on ``(-log_softmax(logits)) ** power`` over the alive
-    agents and allowed goals (``power=1``: the most likely distinct assignment). Alive agents
+    agents and allowed goals (``power=2``: the policies' decoding; ``power=1``: the most likely
+    distinct assignment, kept for comparison). Alive agents
     left without a goal (more of them than allowed goals) and dropped agents take their own
     best allowed goal.
     """

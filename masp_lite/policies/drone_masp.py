@@ -4,8 +4,8 @@ The method table (:data:`masp_lite.policies.METHODS`) gives ``masp`` on a drone 
 class (weights with ``action="throttle"``, the paper's motor commands); ``masp-velocity`` is
 the variant whose executor asks the geometric controller for a velocity (weights with
 ``action="velocity"``), kept apart so a record never mixes them. Every global step the Goal
-Matcher gives the flying drones distinct goals (the most likely such assignment,
-:func:`~masp_lite.nets.decoding.joint_argmax`), or the Hungarian assignment with weights
+Matcher gives the flying drones distinct goals (the assignment with the least summed squared
+``-log`` score, :func:`~masp_lite.nets.decoding.joint_argmax`), or the Hungarian assignment with weights
 trained with ``goal_matcher="hungarian"``; every step the executor's action is its
 Gaussian's mean (``deterministic``, the default) or a sample, clipped to [−1, 1]
 (:mod:`masp_lite.nets.drones`).

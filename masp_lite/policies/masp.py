@@ -47,8 +47,8 @@ class MASPPolicy:
     overrides the checkpoint's Goal Matcher period. ``deterministic``: take the most likely
     goals and action (the paper's "highest matching score"); ``False`` samples both.
     ``decode``: how the Goal Matcher's scores become goals (:mod:`masp_lite.nets.decoding`):
-    ``"joint"`` (default) gives the alive agents distinct goals — the most likely such
-    assignment, or the sequential draw of training when sampling; ``"independent"`` lets
+    ``"joint"`` (default) gives the alive agents distinct goals — the assignment with the
+    least summed squared ``-log`` score, or the sequential draw of training when sampling; ``"independent"`` lets
     every agent take its own best goal, duplicates allowed (the paper's literal wording);
     ``"hungarian"`` bypasses the Goal Matcher and takes the Hungarian assignment
     (:func:`masp_lite.algos.assignment.hungarian`, the goals of ``h-greedy`` and of R_GM's
@@ -127,7 +127,7 @@ class MASPPolicy:
         if self.decode == "independent":
             return self._pick(logits)
         if self.deterministic:
-            return joint_argmax(logits, alive, mask, 2.0 if self.decode == "squared" else 1.0)
+            return joint_argmax(logits, alive, mask)
         return sequential_sample(logits.cpu(), alive.cpu(), self.generator, None if mask is None else mask.cpu())[0] \
             .to(logits.device)
 

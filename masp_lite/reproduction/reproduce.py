@@ -29,7 +29,7 @@ from pathlib import Path
 
 import torch
 
-from ..envs import MPE2_WORLD, get_scenario, world_name
+from ..envs import MPE2_WORLD, SCENARIOS, get_scenario, world_name
 from ..evaluation import evaluate
 from ..evaluation.tables import cell, render_rows
 from ..policies import METHODS
@@ -202,15 +202,18 @@ def training_seed(rec: dict, kept: str = "") -> int | None:
     ``results/training/BASE-seedK.pt`` (the kept weights of training seed K of the scenario's
     preset, or of the preset whose weights it runs zero-shot: :func:`masp_lite.weights.trained_preset`)
     is K. With ``kept`` (a folder under ``results/training/``, e.g. ``"faithful/"``), only
-    ``results/training/KEPT/BASE-seedK.pt`` counts: the training seeds of another recipe (BASE
-    the scenario's preset, or the one whose weights it runs zero-shot, as above)."""
+    ``results/training/KEPT/PRESET-seedK.pt`` counts: the training seeds of another recipe, whose
+    weights of any preset may run here (the faithful recipe trains mpe-20 and runs mpe-50 zero-shot,
+    where the shipped chain trains at N = 50)."""
     opts = rec.get("method_options", {})
     if not _preset_batched(rec):
         return None
     if not opts:
         return None if kept else int(read_manifest().get(base_scenario(rec["scenario"]), {}).get("seed", 0))
     m = re.fullmatch(r"results/training/(.+)-seed(\d+)\.pt", str(opts.get("checkpoint", "")))
-    presets = {kept + trained_preset(rec["scenario"]), kept + base_scenario(rec["scenario"])}
+    presets = {trained_preset(rec["scenario"]), base_scenario(rec["scenario"])}
+    if kept:
+        presets = {kept + name for name in SCENARIOS}
     if set(opts) == {"checkpoint"} and m and m.group(1) in presets:
         return int(m.group(2))
     return None
@@ -374,8 +377,9 @@ def table_faithful(records, latex=False) -> Table:
 
     The shipped weights end with stages whose R_GM reference is Hungarian on *squared*
     distances (:attr:`masp_lite.config.RewardConfig.gm_reference`); the faithful recipe
-    trains mpe-20 from scratch with the reference on distances throughout and runs every
-    other preset zero-shot (its weights: ``results/training/faithful/mpe-20-seedK.pt``).
+    trains mpe-20 from scratch with the reference on distances throughout and runs the presets
+    of more agents zero-shot (its weights: ``results/training/faithful/mpe-20-seedK.pt``), where
+    the shipped chain goes on to train its Goal Matcher at N = 50.
     Columns: shipped, faithful, and h-bottleneck (the min–max assignment) for scale; the
     paper row holds the paper's MASP under both MASP columns."""
     columns = [("MASP (shipped)", "masp", ""), ("MASP (eq. 1 as written)", "masp", FAITHFUL),
@@ -719,7 +723,7 @@ def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:
             runs += [(method, {} if k is None else {"checkpoint": f"results/training/{kept}{k.name}"}) for k in found]
         scenarios = _FIXED + _VARYING if table == "faithful" else ("mpe-20",)
         return [(m, sc, {"method_options": opts}) for sc in scenarios for m, opts in runs
-                if not opts or trained_preset(sc) == "mpe-20"]  # kept mpe-20 weights serve the presets they fly
+                if not opts or get_scenario(sc).num_agents >= 20]  # kept mpe-20 weights fly 20 agents or more
     if table == "per-step-time":
         return [(m, "mpe-50", {"num_envs": 1}) for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
     scenarios = {"mpe": ("mpe-5", "mpe-20", "mpe-50"), "mpe-varying": ("mpe-20to10", "mpe-50to20"),
