@@ -203,8 +203,8 @@ def training_seed(rec: dict, kept: str = "") -> int | None:
     preset, or of the preset whose weights it runs zero-shot: :func:`masp_lite.weights.trained_preset`)
     is K. With ``kept`` (a folder under ``results/training/``, e.g. ``"faithful/"``), only
     ``results/training/KEPT/PRESET-seedK.pt`` counts: the training seeds of another recipe, whose
-    weights of any preset may run here (the faithful recipe trains mpe-20 and runs mpe-50 zero-shot,
-    where the shipped chain trains at N = 50)."""
+    weights of any preset may run here with ``any_scenario`` (the faithful recipe trains mpe-20 and
+    runs mpe-50 zero-shot, where the shipped chain trains at N = 50)."""
     opts = rec.get("method_options", {})
     if not _preset_batched(rec):
         return None
@@ -212,9 +212,10 @@ def training_seed(rec: dict, kept: str = "") -> int | None:
         return None if kept else int(read_manifest().get(base_scenario(rec["scenario"]), {}).get("seed", 0))
     m = re.fullmatch(r"results/training/(.+)-seed(\d+)\.pt", str(opts.get("checkpoint", "")))
     presets = {trained_preset(rec["scenario"]), base_scenario(rec["scenario"])}
-    if kept:
-        presets = {kept + name for name in SCENARIOS}
-    if set(opts) == {"checkpoint"} and m and m.group(1) in presets:
+    names = {"checkpoint"}
+    if kept:  # another preset's weights run with any_scenario
+        presets, names = {kept + name for name in SCENARIOS}, {"checkpoint", "any_scenario"}
+    if "checkpoint" in opts and set(opts) <= names and opts.get("any_scenario", True) and m and m.group(1) in presets:
         return int(m.group(2))
     return None
 
@@ -722,7 +723,9 @@ def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:
             found = sorted((RESULTS_DIR / "training" / kept).glob("mpe-20-seed*.pt")) if kept else [None]
             runs += [(method, {} if k is None else {"checkpoint": f"results/training/{kept}{k.name}"}) for k in found]
         scenarios = _FIXED + _VARYING if table == "faithful" else ("mpe-20",)
-        return [(m, sc, {"method_options": opts}) for sc in scenarios for m, opts in runs
+        return [(m, sc, {"method_options": {**opts, **({"any_scenario": True} if opts and base_scenario(sc) !=
+                                                        "mpe-20" else {})}})
+                for sc in scenarios for m, opts in runs
                 if not opts or get_scenario(sc).num_agents >= 20]  # kept mpe-20 weights fly 20 agents or more
     if table == "per-step-time":
         return [(m, "mpe-50", {"num_envs": 1}) for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
