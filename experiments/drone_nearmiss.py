@@ -24,16 +24,14 @@ import argparse
 
 import torch
 
-import masp_lite.algos.masp_trainer as masp_trainer
 from experiments import print_validation
+from masp_lite.algos.drone_trainer import DroneMASPTrainer
 from masp_lite.envs.drone_model import COLLISION_RADIUS
-from masp_lite.envs.drones import DroneWorld
 from masp_lite.training import method_config, train
 
 SHIPPED = "masp_lite/weights/drone-20.pt"
 SETTINGS = ["goal_matcher=hungarian", "num_envs=16", "eval_every=10", "eval_episodes=16", "checkpoint_every=5",
             "collision_coef=2", "lr=3e-4"]
-_last = {}
 
 
 def near_miss(pos: torch.Tensor, vel: torch.Tensor, alive: torch.Tensor, zone: float, v_ref: float = 3.0):
@@ -48,6 +46,17 @@ def near_miss(pos: torch.Tensor, vel: torch.Tensor, alive: torch.Tensor, zone: f
     return torch.where(pair, near * closing, torch.zeros_like(d)).sum(-1)
 
 
+def near_miss_trainer(coef: float, zone: float) -> type[DroneMASPTrainer]:
+    """The drone trainer whose R_CAE (crash charge included) also pays ``coef`` times :func:`near_miss`."""
+
+    class NearMissTrainer(DroneMASPTrainer):
+        def executor_reward(self, obs, goals, info, alive, t):
+            r = super().executor_reward(obs, goals, info, alive, t)
+            pen = near_miss(obs["agent_pos"], obs["agent_vel"], alive & obs["alive"], zone)
+            return r - coef * torch.where(alive, pen, torch.zeros_like(pen))
+    return NearMissTrainer
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.drone_nearmiss", description=__doc__.split("\n")[0])
     p.add_argument("--coef", type=float, required=True, help="weight of the near-miss term")
@@ -60,27 +69,9 @@ def main(argv=None) -> int:
         raise SystemExit(f"expected --coef >= 0 and --zone > {2 * COLLISION_RADIUS:.2f} m")
     torch.set_num_threads(1)
 
-    step = DroneWorld.step
-
-    def recording_step(self, actions):
-        obs, info = step(self, actions)
-        _last["obs"] = obs
-        return obs, info
-
-    reward = masp_trainer.executor_reward  # R_CAE, read by the trainer's executor_reward hook
-
-    def shaped_reward(agent_pos, goal_pos, agent_collisions, alive, *a, **k):
-        r = reward(agent_pos, goal_pos, agent_collisions, alive, *a, **k)
-        obs = _last["obs"]
-        both = alive & obs["alive"]
-        pen = near_miss(obs["agent_pos"], obs["agent_vel"], both, args.zone)
-        return r - args.coef * torch.where(alive, pen, torch.zeros_like(pen))
-
-    DroneWorld.step = recording_step
-    masp_trainer.executor_reward = shaped_reward
     method, cfg, overrides = method_config("masp", SETTINGS + [f"updates={args.updates}"], "drone-20")
     train("drone-20", cfg, args.out, seed=0, resume=args.resume, init=SHIPPED, overrides=overrides,
-          progress=False, method=method,
+          progress=False, method=method, trainer_type=near_miss_trainer(args.coef, args.zone),
           command=f"python -m experiments.drone_nearmiss --coef {args.coef} --zone {args.zone}")
     print_validation(args.out)
     return 0

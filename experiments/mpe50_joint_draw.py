@@ -26,11 +26,11 @@ mpe-20 weights, executor frozen, R_GM against the Hungarian assignment on square
 from __future__ import annotations
 
 import argparse
-from unittest import mock
 
 import torch
 
 from experiments import print_validation
+from masp_lite.algos.masp_trainer import MASPTrainer
 from masp_lite.nets.decoding import joint_argmax
 from masp_lite.training import method_config, train
 
@@ -52,6 +52,12 @@ def perturbed_joint_sample(logits: torch.Tensor, alive: torch.Tensor, generator:
     return goals, logp, torch.zeros_like(goals)
 
 
+class PerturbedDrawTrainer(MASPTrainer):
+    """MASP's trainer with the Goal Matcher trained on :func:`perturbed_joint_sample`."""
+
+    draw_goals = staticmethod(perturbed_joint_sample)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.mpe50_joint_draw", description=__doc__.split("\n")[0])
     p.add_argument("--seed", type=int, required=True, choices=[0, 1, 2], help="training seed")
@@ -65,13 +71,9 @@ def main(argv=None) -> int:
     init = args.init or (SEED0 if args.seed == 0 else f"results/training/mpe-20-seed{args.seed}.pt")
     method, cfg, overrides = method_config("masp", SETTINGS + [f"updates={args.updates}"], "mpe-50")
     command = f"python -m experiments.mpe50_joint_draw --seed {args.seed} --draw {args.draw}"
-    if args.draw == "perturbed":
-        with mock.patch("masp_lite.algos.masp_trainer.sequential_sample", perturbed_joint_sample):
-            train("mpe-50", cfg, args.out, seed=args.seed, resume=args.resume, init=init, overrides=overrides,
-                  progress=False, method=method, command=command)
-    else:
-        train("mpe-50", cfg, args.out, seed=args.seed, resume=args.resume, init=init, overrides=overrides,
-              progress=False, method=method, command=command)
+    train("mpe-50", cfg, args.out, seed=args.seed, resume=args.resume, init=init, overrides=overrides,
+          progress=False, method=method, command=command,
+          trainer_type=PerturbedDrawTrainer if args.draw == "perturbed" else None)
     print_validation(args.out)
     return 0
 

@@ -10,7 +10,7 @@ Reading path — MASP itself, in the order of the paper's method section (11 fil
 =====  ==========================  =====  ================================================
 step   file                        lines  what it holds
 =====  ==========================  =====  ================================================
-1      ``envs/particle.py``          334  the task: MPE's world, batched over episodes
+1      ``envs/particle.py``          308  the task: MPE's world, batched over episodes
 2      ``evaluation/metrics.py``     109  SR, Steps, CR, as the paper defines them
 3      ``algos/assignment.py``       168  the Hungarian assignment (R_GM's reference)
 4      ``nets/encoders.py``          228  Self-Encoder and Cross-Encoder (eqs. 2-4)

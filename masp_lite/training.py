@@ -274,10 +274,14 @@ def checkpoint_iterations(out) -> int | None:
 
 def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = False, init=None,
           overrides: dict | None = None, progress: bool = True, command: str | None = None,
-          on_iteration=None, method: str = "masp") -> dict:
+          on_iteration=None, method: str = "masp", trainer_type: type[MASPTrainer] | None = None) -> dict:
     """Train ``method`` (``cfg`` from :func:`method_config`); returns the manifest.
 
-    ``on_iteration(trainer)`` runs after every iteration."""
+    ``on_iteration(trainer)`` runs after every iteration. ``trainer_type``: a subclass of the
+    world kind's trainer (:func:`trainer_class`) that changes one part of training for a
+    research question (``experiments/``): its goal draw, its reward or its networks, passed
+    as an argument instead of patching the library. What it changes is not stored in the run:
+    resume with the same one."""
     out = Path(out)
     state_path = out / "state.pt"
     if resume and not state_path.exists():
@@ -285,7 +289,11 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
     if not resume and state_path.exists():
         raise ValueError(f"{state_path} exists; pass --resume to continue it or choose another --out")
     kind = get_scenario(scenario).kind if isinstance(scenario, str) else scenario.kind
-    trainer = trainer_class(kind)(scenario, cfg, seed=seed, overrides=overrides)
+    base = trainer_class(kind)
+    if trainer_type is not None and not (isinstance(trainer_type, type) and issubclass(trainer_type, base)):
+        raise ValueError(f"trainer_type: expected a subclass of {base.__name__} (the {kind} trainer), "
+                         f"got {trainer_type!r}")
+    trainer = (trainer_type or base)(scenario, cfg, seed=seed, overrides=overrides)
     wall_before, rows, started = 0.0, [], datetime.now(timezone.utc).isoformat(timespec="seconds")
     default_command = f"python -m masp_lite train --method {method} --scenario {scenario} --seed {seed}"
     first_command = None

@@ -106,7 +106,8 @@ def test_random_goals_are_distinct_and_held_unless_resampled(tmp_path):
 def test_curves_of_kept_seeds_are_banded(tmp_path):
     import matplotlib
     matplotlib.use("Agg")
-    from masp_lite.viz.progress import kept_curves, plot_seed_bands
+    from masp_lite.reproduction.histories import kept_curves
+    from masp_lite.viz.progress import plot_seed_bands
     folder = tmp_path / "results" / "training" / "v"
     folder.mkdir(parents=True)
     for seed, sr in ((0, 0.2), (1, 0.4)):

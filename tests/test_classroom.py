@@ -53,18 +53,19 @@ def _submit(folder, student, nb):
 
 
 def test_init_writes_an_nbgrader_course_folder(tmp_path):
-    written = classroom.init(tmp_path / "course")
-    assert [p.parent.name for p in written] == classroom.chapters()
+    written = classroom.init(tmp_path / "course", solutions=ROOT / "solutions")
+    assert [p.parent.name for p in written] == classroom.chapters(ROOT / "solutions")
     for p in written:
         assert p == tmp_path / "course" / "source" / p.stem / f"{p.stem}.ipynb"
         assert p.read_bytes() == (ROOT / "solutions" / p.name).read_bytes()
     assert (tmp_path / "course" / "nbgrader_config.py").is_file()
     assert (tmp_path / "course" / "gradebook.db").is_file()
     with pytest.raises(ValueError, match="exists"):
-        classroom.init(tmp_path / "course", ["03"])
-    assert classroom.init(tmp_path / "course", ["03"], force=True)[0].parent.name == "03_graph_encoders"
+        classroom.init(tmp_path / "course", ["03"], solutions=ROOT / "solutions")
+    assert classroom.init(tmp_path / "course", ["03"], solutions=ROOT / "solutions",
+                          force=True)[0].parent.name == "03_graph_encoders"
     with pytest.raises(ValueError, match="unknown chapter"):
-        classroom.init(tmp_path / "other", ["99"])
+        classroom.init(tmp_path / "other", ["99"], solutions=ROOT / "solutions")
     assert classroom.main(["init", str(tmp_path / "third"), "nope"]) == 2
 
 

@@ -137,6 +137,6 @@ def test_nbgrader_loads_the_course_config_and_it_agrees_with_generate(monkeypatc
     assert any("No nbgrader_config.py" in w for w in warnings)  # what nbgrader says without one
     course, warnings = load(ROOT)
     assert warnings == []
-    assert Path(course.root) == generate.ROOT == ROOT
+    assert Path(course.root) == ROOT
     assert (Path(course.root) / course.source_directory, Path(course.root) / course.release_directory) == (
-        ROOT / "solutions", ROOT / "notebooks")  # generate_all's default folders
+        ROOT / generate.SOLUTIONS, ROOT / generate.NOTEBOOKS)  # generate_all's default folders, run from the root

@@ -310,7 +310,7 @@ def test_generate_check_reports_stale_notebooks(tmp_path, capsys):
 
 def test_learner_notebooks_are_in_sync_with_solutions():
     assert SOLUTIONS, "expected instructor notebooks in solutions/"
-    assert generate.stale() == [], "run: python -m masp_lite.course.generate"
+    assert generate.stale(ROOT / "solutions", ROOT / "notebooks") == [], "run: python -m masp_lite.course.generate"
     shipped = sorted(p.name for p in (ROOT / "notebooks").glob("*.ipynb"))
     assert shipped == [p.name for p in SOLUTIONS], "every learner notebook needs an instructor version"
 

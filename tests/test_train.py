@@ -320,3 +320,28 @@ def test_chunked_kernels_train_like_plain_autograd():
         assert row_fast[k] == pytest.approx(row_plain[k], rel=1e-4, abs=1e-6), k
     for (name, a), b in zip(fast.nets.state_dict().items(), plain.nets.state_dict().values()):
         torch.testing.assert_close(a, b, rtol=1e-3, atol=1e-4, msg=name)
+
+
+def test_a_trainer_subclass_changes_one_part_and_nothing_else(tmp_path):
+    """``train(trainer_type=...)``: the subclass's goal draw is the one trained on; the same draw gives the
+    product's weights; anything but a subclass of the world kind's trainer is refused before a file is written."""
+    from masp_lite.algos.masp_trainer import MASPTrainer
+    from masp_lite.nets.decoding import sequential_sample
+    calls = []
+
+    class Counted(MASPTrainer):
+        @staticmethod
+        def draw_goals(logits, alive, generator):
+            calls.append(logits.shape)
+            return sequential_sample(logits, alive, generator)
+
+    cfg = MAPPOConfig(**{**TINY, "updates": 1, "eval_every": 0})
+    train("mpe-5", cfg, tmp_path / "plain", progress=False)
+    train("mpe-5", cfg, tmp_path / "counted", progress=False, trainer_type=Counted)
+    assert len(calls) == 6  # one draw every global step (3) of an 18-step episode
+    a, b = (load_weights(tmp_path / run / "weights.pt")[0].state_dict() for run in ("plain", "counted"))
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    for bad in (object, MASPNets, "MASPTrainer"):
+        with pytest.raises(ValueError, match="trainer_type: expected a subclass of MASPTrainer"):
+            train("mpe-5", cfg, tmp_path / "bad", progress=False, trainer_type=bad)
+    assert not (tmp_path / "bad").exists()

@@ -173,7 +173,8 @@ def test_plot_progress_draws_training_evaluation_and_baseline(tmp_path):
 
 
 def test_training_history_of_the_shipped_weights(tmp_path):
-    from masp_lite.viz.progress import last_evaluation, read_progress, training_history
+    from masp_lite.reproduction.histories import training_history
+    from masp_lite.viz.progress import last_evaluation, read_progress
     from masp_lite.weights import read_manifest
     with pytest.raises(ValueError, match="no shipped weights"):
         training_history("mpe-7")

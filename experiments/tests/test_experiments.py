@@ -295,3 +295,24 @@ def test_remake_records_selects_by_method_and_scenario_and_rebuilds_a_record_as_
     rec = {**rec, "seeds": rec["seeds"][:1], "episodes_per_seed": 2}
     new = re_evaluate(rec)
     assert "overrides" not in new and new["world"] == rec["world"] and new["seeds"] == rec["seeds"]
+
+
+def test_experiment_trainers_change_their_part_without_touching_the_library():
+    """drone_sense's networks clip at ``--sense`` (the product's still at 2 m); mpe50_joint_draw's trainer draws
+    perturb-and-MAP goals; both are subclasses passed to ``train``, not patches."""
+    from experiments.drone_sense import sense_trainer
+    from experiments.mpe50_joint_draw import PerturbedDrawTrainer, perturbed_joint_sample
+    from masp_lite.algos.masp_trainer import MASPTrainer
+    from masp_lite.config import NetConfig
+    from masp_lite.nets.decoding import sequential_sample
+    from masp_lite.nets.drones import DroneNets
+    obs = {"agent_pos": torch.tensor([[[0.0, 0.0, 1.5], [3.0, 0.0, 1.5]]]), "agent_vel": torch.zeros(1, 2, 3),
+           "landmark_pos": torch.zeros(1, 2, 3), "alive": torch.ones(1, 2, dtype=torch.bool),
+           "agent_quat": torch.tensor([[[1.0, 0, 0, 0]] * 2]), "agent_angvel": torch.zeros(1, 2, 3),
+           "throttle": torch.zeros(1, 2, 4)}
+    goals, perm = torch.zeros(1, 2, dtype=torch.long), torch.arange(2)[None]
+    seen = [nets(NetConfig(action="throttle")).cae_inputs(obs, goals, perm)[0][0, 0, 1, 3].item()
+            for nets in (DroneNets, sense_trainer(4.0).nets_class)]
+    assert seen == pytest.approx([1.0, 0.75])  # min(d, sense) / sense of a drone 3 m away
+    assert DroneNets.sense == 2.0
+    assert PerturbedDrawTrainer.draw_goals is perturbed_joint_sample and MASPTrainer.draw_goals is sequential_sample

@@ -30,7 +30,10 @@ The ablations and the RL baselines are settings of the same trainer
 :mod:`masp_lite.algos.goal_sources`, their networks from :mod:`masp_lite.nets.variants`, the
 goal-free ones' reward is :func:`~masp_lite.algos.rewards.coverage_reward`; an ``mlp``
 variant is built for the scenario's team size. The drone trainer
-(:mod:`masp_lite.algos.drone_trainer`) overrides the action step and R_CAE.
+(:mod:`masp_lite.algos.drone_trainer`) overrides the action step and R_CAE. A research question
+changes one part the same way, in a subclass passed to :func:`masp_lite.training.train`
+(``trainer_type``): the goal draw (:attr:`MASPTrainer.draw_goals`), the reward
+(:meth:`MASPTrainer.executor_reward`) or the networks (:attr:`MASPTrainer.nets_class`).
 """
 from __future__ import annotations
 
@@ -56,6 +59,7 @@ class MASPTrainer:
     distribution = None  # categorical executor actions (the drone trainer's are Gaussian)
     nets_class = MASPNets  # the drone trainer's: DroneNets
     obs_keys = OBS_KEYS  # what a stored step keeps of the observation
+    draw_goals = staticmethod(sequential_sample)  # the training draw of distinct goals: (goals, logp, rank)
 
     def __init__(self, scenario: str, cfg: TrainConfig, seed: int = 0, overrides: dict | None = None):
         self.cfg, self.seed = cfg, int(seed)
@@ -134,7 +138,7 @@ class MASPTrainer:
         if t % self.cfg.net.global_step:
             return goals
         goal_mask = ~obs["reached"] if self.world.scenario.varying else None  # reached ones count for SR already
-        goals, logp, rank = sequential_sample(self.nets.gm_logits(obs, self.scale), obs["alive"], self.generator)
+        goals, logp, rank = self.draw_goals(self.nets.gm_logits(obs, self.scale), obs["alive"], self.generator)
         v = self.nets.gm_value(obs, self.scale, self.horizon)
         r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask,
                                 power=2.0 if self.cfg.reward.gm_reference == "squared" else 1.0)

@@ -42,7 +42,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from .generate import ROOT
+from .generate import SOLUTIONS
 
 __all__ = ["init", "chapters", "CONFIG"]
 
@@ -80,7 +80,7 @@ c.Execute.timeout = None
 
 def chapters(solutions: str | Path | None = None) -> list[str]:
     """The chapter names (notebook stems, e.g. ``"03_graph_encoders"``) in ``solutions/``."""
-    solutions = Path(solutions) if solutions is not None else ROOT / "solutions"
+    solutions = Path(solutions) if solutions is not None else SOLUTIONS
     return sorted(p.stem for p in solutions.glob("*.ipynb"))
 
 
@@ -106,7 +106,7 @@ def init(folder: str | Path, names: list[str] | None = None, *, solutions: str |
     ``names`` picks chapters by notebook stem (``"03_graph_encoders"``) or number (``"03"``);
     all chapters by default. An existing source notebook is replaced only with ``force``.
     """
-    solutions = Path(solutions) if solutions is not None else ROOT / "solutions"
+    solutions = Path(solutions) if solutions is not None else SOLUTIONS
     available = chapters(solutions)
     if not available:
         raise ValueError(f"init: expected instructor notebooks in {str(solutions)!r}, found none")
@@ -140,9 +140,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("chapters", nargs="*", help="chapters to include, by name or number (default: all)")
     p.add_argument("--force", action="store_true", help="replace source notebooks that exist")
     p.add_argument("--course-id", default="masp-lite", help="nbgrader's course id (default: masp-lite)")
+    p.add_argument("--solutions", default=None, help="instructor notebooks folder (default: solutions/ here)")
     args = parser.parse_args(argv)
     try:
-        written = init(args.folder, args.chapters, course_id=args.course_id, force=args.force)
+        written = init(args.folder, args.chapters, solutions=args.solutions, course_id=args.course_id,
+                       force=args.force)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -16,7 +16,8 @@ gets Jupyter's standard ``raises-exception`` tag. A graded cell fails (``Asserti
 until its exercise is solved; with the tag, "Run All" goes on past it and nbval accepts
 the failure, while the instructor version — without the tag — must pass every check.
 
-Regenerate every learner notebook (run from the repository root)::
+Regenerate every learner notebook (run from the repository root: the folders default to
+``solutions/`` and ``notebooks/`` of the current folder)::
 
     python -m masp_lite.course.generate            # solutions/*.ipynb -> notebooks/
     python -m masp_lite.course.generate --check    # exit 1 if any shipped one is stale
@@ -44,10 +45,12 @@ from nbgrader.preprocessors import (
 from nbgrader.preprocessors.base import NbGraderPreprocessor
 from nbgrader.utils import is_grade
 
-__all__ = ["generate", "generate_all", "learner_notebook", "TagGradedCells", "ROOT"]
+__all__ = ["generate", "generate_all", "learner_notebook", "TagGradedCells", "SOLUTIONS", "NOTEBOOKS"]
 
-#: Repository root (the folder holding ``solutions/`` and ``notebooks/``).
-ROOT = Path(__file__).resolve().parents[2]
+#: The default folders, relative to the current folder (the repository root, or any copy of the
+#: course): the instructor notebooks and the learner notebooks generated from them. Folders are
+#: arguments, so the package never assumes a source checkout around it.
+SOLUTIONS, NOTEBOOKS = Path("solutions"), Path("notebooks")
 
 _TAG = "raises-exception"
 
@@ -96,9 +99,11 @@ def generate(src: str | Path, dst: str | Path) -> Path:
 
 
 def generate_all(solutions: str | Path | None = None, notebooks: str | Path | None = None) -> list[Path]:
-    """Regenerate a learner notebook for every ``solutions/*.ipynb``; return the paths written."""
-    solutions = Path(solutions) if solutions is not None else ROOT / "solutions"
-    notebooks = Path(notebooks) if notebooks is not None else ROOT / "notebooks"
+    """Regenerate a learner notebook for every ``solutions/*.ipynb``; return the paths written.
+
+    ``solutions``, ``notebooks``: the folders (default :data:`SOLUTIONS`, :data:`NOTEBOOKS`)."""
+    solutions = Path(solutions) if solutions is not None else SOLUTIONS
+    notebooks = Path(notebooks) if notebooks is not None else NOTEBOOKS
     sources = sorted(solutions.glob("*.ipynb"))
     if not sources:
         raise ValueError(f"generate_all: expected instructor notebooks in {str(solutions)!r}, found none")
@@ -110,7 +115,7 @@ def stale(solutions: str | Path | None = None, notebooks: str | Path | None = No
     """Names of shipped learner notebooks that differ from a fresh generation (or are missing)."""
     import tempfile
 
-    notebooks = Path(notebooks) if notebooks is not None else ROOT / "notebooks"
+    notebooks = Path(notebooks) if notebooks is not None else NOTEBOOKS
     with tempfile.TemporaryDirectory() as tmp:
         out = []
         for fresh in generate_all(solutions, tmp):

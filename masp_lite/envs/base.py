@@ -1,5 +1,6 @@
-"""What every batched world shares, written once: argument checks, env ids, reset options,
-the team mask of a team-size change, rejection-sampled spawns and the action checks.
+"""What every batched world shares, written once: argument checks, env ids, reset options (checked
+by :mod:`.start` when given), the team mask of a team-size change, rejection-sampled spawns and
+the action checks.
 
 :class:`BatchedWorld` is the interface :mod:`masp_lite.evaluation` and the policies rely
 on: ``num_envs`` episodes of one :class:`~masp_lite.envs.scenarios.Scenario`, stepped
@@ -75,36 +76,13 @@ class BatchedWorld:
             raise ValueError(f"env_ids: expected indices in [0, {self.num_envs}), got {ids.tolist()}")
         return ids
 
-    def _start_state(self, options, n: int) -> dict[str, np.ndarray]:
-        """Validated start-state options for ``n`` episodes, float64 arrays (n, N, d).
-
-        Each may be given for one episode, (N, d), or per episode, (n, N, d); ``keep`` is
-        checked by :meth:`_team_mask`; any other key is one clear error."""
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(self.reset_options) - {"keep"})
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; expected some of "
-                             f"{sorted(self.reset_options) + ['keep']}")
-        given = {}
-        for name, d in self.reset_options.items():
-            if name not in options:
-                continue
-            value = options[name]
-            shape = (self.num_obstacles if name == "obstacle_pos" else self.num_agents, d)
-            a = np.asarray(value.detach().cpu() if torch.is_tensor(value) else value, dtype=np.float64)
-            if a.shape == shape:
-                a = np.broadcast_to(a, (n, *shape))
-            if a.shape != (n, *shape):
-                raise ValueError(f"reset option {name!r}: expected shape {shape} or {(n, *shape)}, got {a.shape}")
-            if not np.isfinite(a).all():
-                raise ValueError(f"reset option {name!r}: expected finite values")
-            low, high = self._option_bounds(name)
-            bad = (a < low) | (a > high)
-            if bad.any():
-                raise ValueError(f"reset option {name!r}: expected values in {self._bounds_text(low, high)}, "
-                                 f"got {a[bad].flat[0]:g}")
-            given[name] = a.copy()
-        return given
+    def _start_state(self, options: dict, n: int) -> dict[str, np.ndarray]:
+        """Validated start-state options for ``n`` episodes (:func:`~masp_lite.envs.start.start_state`);
+        ``{}`` when none are given, without loading the checks (training never gives any)."""
+        if not options:
+            return {}
+        from .start import start_state
+        return start_state(self, options, n)
 
     def _option_bounds(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) per coordinate of a start-state option (broadcast over its last axis).
@@ -112,11 +90,6 @@ class BatchedWorld:
         A start far outside the world is refused rather than simulated: the physics would
         overflow (particles) or silently reset the body (MuJoCo)."""
         return np.array(-np.inf), np.array(np.inf)
-
-    @staticmethod
-    def _bounds_text(low, high) -> str:
-        low, high = np.broadcast_arrays(np.atleast_1d(low), np.atleast_1d(high))
-        return " x ".join(f"[{lo:g}, {hi:g}]" for lo, hi in zip(low, high))
 
     def _random_order(self, n: int) -> np.ndarray:
         """(n, N) a random order of the agents per episode, from the world's generator."""

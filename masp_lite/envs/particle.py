@@ -109,7 +109,8 @@ class ParticleWorld(BatchedWorld):
         matching the episodes being reset — and ``keep`` (N,) bool, the agents that stay
         after a team-size change. Anything not given is drawn at random, apart from every
         other body; given agents may overlap one another or an obstacle, as in MPE, and
-        contact then pushes them apart (:meth:`_check_start` says what is refused).
+        contact then pushes them apart (:func:`~masp_lite.envs.start.check_particle_start`
+        says what is refused).
         """
         if seed is not None:
             self._rng.manual_seed(int(seed))
@@ -120,7 +121,9 @@ class ParticleWorld(BatchedWorld):
         given = {k: torch.from_numpy(v) for k, v in self._start_state(options, n).items()}
         obst, agents, lms = self._spawn(n, given)
         keep = torch.from_numpy(self._team_mask(n, options.get("keep")))
-        self._check_start(agents, obst, lms)
+        if given:  # drawn bodies are apart by construction (:meth:`_spawn`); a given start is checked
+            from .start import check_particle_start
+            check_particle_start(self.scenario, agents, obst, lms)
 
         def put(name, value, shape):
             full = getattr(self, name, None)
@@ -155,7 +158,7 @@ class ParticleWorld(BatchedWorld):
         landmark may lie under an agent). Obstacles and agents are uniform over the map;
         landmarks too, or over the central 0.8× square (``Scenario.landmark_spawn``). The
         paper does not say where its obstacles go. Only what is drawn here is kept apart:
-        given agents may overlap (see :meth:`_check_start`).
+        given agents may overlap (see :func:`~masp_lite.envs.start.check_particle_start`).
         """
         sc = self.scenario
         ra, rl, ro = sc.agent_radius, sc.landmark_radius, sc.obstacle_radius
@@ -187,35 +190,6 @@ class ParticleWorld(BatchedWorld):
             return ok
 
         return self._place(out, draw, clear, f"{count} bodies of radius {radius} without overlap")
-
-    def _check_start(self, agents, obst, lms):
-        """Refuse a start state that MPE's physics cannot run or that no episode can solve.
-
-        Given agents may overlap each other or an obstacle, as MPE allows: the contact force
-        pushes them apart in the first steps (and counts as a collision). What is refused:
-        two agents, or an agent and an obstacle, at the very same point (the contact force has
-        no direction there), overlapping obstacles, and a landmark inside an obstacle.
-        """
-        sc = self.scenario
-
-        def closest(a, b, same):
-            d = (a[:, :, None] - b[:, None]).norm(dim=-1)
-            if same:
-                d = d + torch.eye(a.shape[1], dtype=d.dtype) * 1e9
-            return float(d.min()) if d.numel() else float("inf")
-
-        if closest(agents, agents, True) == 0.0:
-            raise ValueError("reset options: two agents at the same point; expected distinct agent positions "
-                             "(agents may overlap: contact pushes them apart)")
-        if closest(agents, obst, False) == 0.0:
-            raise ValueError("reset options: an agent at the centre of an obstacle; expected it elsewhere "
-                             "(an agent may overlap an obstacle: contact pushes it out)")
-        if closest(obst, obst, True) < 2 * sc.obstacle_radius:
-            raise ValueError("reset options: obstacles overlap; expected centres at least "
-                             f"{2 * sc.obstacle_radius:g} m apart")
-        if closest(lms, obst, False) < sc.landmark_radius + sc.obstacle_radius:
-            raise ValueError("reset options: a landmark lies inside an obstacle; expected centres at least "
-                             f"{sc.landmark_radius + sc.obstacle_radius:g} m apart")
 
     # ------------------------------------------------------------------- step
     def step(self, actions) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:

@@ -121,6 +121,8 @@ class DroneNets(nn.Module):
     """Both levels' actors and critics for drones, from a :class:`~masp_lite.config.NetConfig`
     whose ``action`` is ``throttle`` or ``velocity``; the interface of :class:`~masp_lite.nets.masp.MASPNets`."""
 
+    sense = DRONE_SENSE  # metres at which the pair features clip (a research subclass may see farther)
+
     def __init__(self, config: NetConfig | None = None, **arch):
         super().__init__()
         if config is not None and arch:
@@ -149,7 +151,7 @@ class DroneNets(nn.Module):
         """Executor inputs ``(pair, groups, alive, goal_f, state_f)`` for goal indices ``goals`` (B, N)."""
         pos, vel = obs["agent_pos"], obs["agent_vel"]
         goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos))
-        return (pair_features(pos, vel, DRONE_SENSE, DRONE_SPEED), group_division(perm, self.config.group_size),
+        return (pair_features(pos, vel, self.sense, DRONE_SPEED), group_division(perm, self.config.group_size),
                 obs["alive"], goal_features(pos, vel, goal_pos, DRONE_SPEED), drone_state_features(obs))
 
     def cae_logits(self, inputs: tuple):

@@ -9,7 +9,8 @@ histories and seeds under ``results/training/``, and the source tree's weights f
   (``python -m masp_lite reproduce``), and re-evaluating every record;
 * :mod:`.claims` — the paper's comparisons, judged from records with their spreads;
 * :mod:`.plan` — ``reproduce --train``: every kept training run, retrained from random networks;
-* :mod:`.shipping` — keeping a finished run: its weights shipped, its history under ``results/training/``.
+* :mod:`.shipping` — keeping a finished run: its weights shipped, its history under ``results/training/``;
+* :mod:`.histories` — reading the kept histories back (the shipped weights' stages, a recipe's seeds).
 """
 from pathlib import Path
 

@@ -1,4 +1,4 @@
-"""Training curves: read a run's ``progress.csv``, find the shipped weights' history, plot it.
+"""Training curves: read a run's ``progress.csv`` and plot it.
 
 A training run (:func:`masp_lite.training.train`) writes one ``progress.csv`` row per
 iteration: environment steps, wall-clock, the training episodes' SR / Steps / CR (sampled
@@ -8,12 +8,8 @@ cells in the other rows). These functions are what chapters 06 and 10 use to loo
 
 * :func:`read_progress` — the file as columns of floats (NaN where a cell is empty);
 * :func:`last_evaluation` — the last row that has an evaluation;
-* :func:`training_history` — the history of the shipped weights of a scenario (every
-  training stage, oldest first, with its curve), read from ``results/training/`` of a
-  source checkout; ``None`` when the package is installed without that folder;
-* :func:`plot_progress` — SR, Steps, CR and both rewards against environment steps.
-* :func:`kept_curves` and :func:`plot_seed_bands` — the curves of a recipe's kept training
-  seeds (``results/training/FOLDER/``), and their mean and band over seeds (chapter 10's
+* :func:`plot_progress` — SR, Steps, CR and both rewards against environment steps;
+* :func:`plot_seed_bands` — the mean and band over seeds of several runs' curves (chapter 10's
   ablation figure).
 * :class:`ProgressLine` — a training run's progress in a notebook as one line that updates
   in place (``train(..., progress=False, on_iteration=ProgressLine(updates))``): the saved
@@ -21,25 +17,20 @@ cells in the other rows). These functions are what chapters 06 and 10 use to loo
 
 Why columns of floats: a curve is plotted and compared as an array, and NaN keeps the
 evaluation columns aligned with the iterations (``np.isnan`` finds the evaluated rows).
+
+The kept histories of a source checkout (the shipped weights' stages, the ablations' seeds)
+are read by the reproduction room (:mod:`masp_lite.reproduction.histories`).
 """
 from __future__ import annotations
 
 import csv
-import json
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from ..weights import base_scenario, read_manifest
-
-#: The source checkout this package runs from, and its kept training histories (absent from an installed copy).
-REPO_ROOT = Path(__file__).resolve().parents[2]
-KEPT_DIR = REPO_ROOT / "results" / "training"
-
-__all__ = ["read_progress", "last_evaluation", "training_history", "plot_progress", "kept_curves", "plot_seed_bands",
-           "ProgressLine"]
+__all__ = ["read_progress", "last_evaluation", "plot_progress", "plot_seed_bands", "ProgressLine"]
 
 
 class ProgressLine:
@@ -141,31 +132,6 @@ def last_evaluation(columns: dict) -> dict | None:
             **{k: float(columns[f"eval_{k}"][i]) for k in ("sr", "steps", "cr")}}
 
 
-def training_history(scenario: str, root=None) -> dict | None:
-    """The training history of the shipped weights for ``scenario``, or ``None`` if it is not here.
-
-    The shipped manifest entry (:func:`masp_lite.weights.read_manifest`) names the history
-    manifest (``results/training/SCENARIO-seed0.manifest.json``) relative to ``root``, the
-    repository root by default. Returned: that manifest, with every stage's ``progress``
-    replaced by the absolute path of its curve (``None`` where the file is missing). No
-    shipped weights for the scenario is a ``ValueError``; a missing history (an installed
-    package without ``results/``) is ``None``.
-    """
-    name = base_scenario(scenario)
-    entry = read_manifest().get(name)
-    if entry is None:
-        raise ValueError(f"training_history: no shipped weights for {name!r}; expected one of "
-                         f"{sorted(read_manifest())}")
-    path = Path(REPO_ROOT if root is None else root) / entry.get("history", "")
-    if not entry.get("history") or not path.is_file():
-        return None
-    history = json.loads(path.read_text())
-    for stage in history.get("stages", []):
-        curve = path.parent / stage["progress"] if stage.get("progress") else None
-        stage["progress"] = curve if curve is not None and curve.is_file() else None
-    return history
-
-
 def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, baseline_label: str = "h-greedy"):
     """One figure of training curves against environment steps; returns the figure.
 
@@ -203,25 +169,11 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
     return fig
 
 
-def kept_curves(folder: str, scenario: str = "mpe-20", root=None) -> dict[int, dict[str, np.ndarray]]:
-    """The curves of a recipe's kept training seeds: ``{seed: read_progress(...)}``.
-
-    ``folder`` is a folder of ``results/training/`` (``"faithful"``, ``"masp-rg"``, ...) holding
-    ``SCENARIO-seedK.progress.csv`` (the last stage of each seed, see
-    :func:`masp_lite.reproduction.shipping.ship_run`); ``{}`` when there is none (an installed package)."""
-    base = (KEPT_DIR if root is None else Path(root) / "results" / "training") / folder
-    out = {}
-    for path in sorted(base.glob(f"{scenario}-seed*.progress.csv")):
-        seed = path.name[len(f"{scenario}-seed"):-len(".progress.csv")]   # not SCENARIO-seedK.stageJ.progress.csv
-        if seed.isdigit():
-            out[int(seed)] = read_progress(path)
-    return out
-
-
 def plot_seed_bands(groups: dict, key: str = "train_sr", smooth: int = 5, ax=None, ylabel: str | None = None):
     """Mean and min–max band over seeds of column ``key`` against environment steps, one line per group.
 
-    ``groups``: ``{label: {seed: columns}}`` (e.g. :func:`kept_curves` of each variant). Each seed's
+    ``groups``: ``{label: {seed: columns}}`` (e.g. :func:`~masp_lite.reproduction.histories.kept_curves`
+    of each variant). Each seed's
     curve is smoothed by a running mean over ``smooth`` iterations and cut to the shortest
     seed of its group; a group with one seed is a line without a band. Returns the axes."""
     import matplotlib.pyplot as plt
