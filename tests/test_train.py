@@ -286,6 +286,15 @@ def test_a_preset_can_ship_another_presets_weights_zero_shot(tmp_path, monkeypat
     manifest = json.loads((wd / "manifest.json").read_text())
     assert manifest["mpe-20"]["sha256"] == manifest["mpe-5"]["sha256"] == weights.sha256(wd / "mpe-5.pt")
     assert manifest["mpe-20"]["note"] == "the mpe-5 weights, zero-shot"
+    # a team change may have an entry of its own, ahead of the preset it starts from
+    manifest = json.loads((wd / "manifest.json").read_text())
+    manifest["mpe-50"] = {**manifest["mpe-5"], "scenario": "mpe-50"}                       # as if trained there
+    (wd / "manifest.json").write_text(json.dumps(manifest))
+    assert weights.trained_preset("mpe-50to20") == "mpe-50"
+    ship_zero_shot(wd, "mpe-50to20", "mpe-5", note="chosen on validation")
+    assert weights.trained_preset("mpe-50to20") == "mpe-5" and weights.trained_preset("mpe-50") == "mpe-50"
+    assert weights.shipped_entry("mpe-50to20")["note"] == "chosen on validation"
+    assert weights.default_checkpoint("mpe-50to20") == wd / "mpe-5.pt"
 
 
 def test_init_refuses_another_architecture(tmp_path):

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..viz.progress import read_progress
-from ..weights import base_scenario, read_manifest
+from ..weights import base_scenario, read_manifest, shipped_entry
 from . import KEPT_DIR, REPO_ROOT
 
 __all__ = ["training_history", "kept_curves"]
@@ -35,7 +35,7 @@ def training_history(scenario: str, root=None) -> dict | None:
     package without ``results/``) is ``None``.
     """
     name = base_scenario(scenario)
-    entry = read_manifest().get(name)
+    entry = shipped_entry(scenario)
     if entry is None:
         raise ValueError(f"training_history: no shipped weights for {name!r}; expected one of "
                          f"{sorted(read_manifest())}")

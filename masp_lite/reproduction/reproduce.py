@@ -33,7 +33,7 @@ from ..envs import MPE2_WORLD, SCENARIOS, get_scenario, world_name
 from ..evaluation import evaluate
 from ..evaluation.tables import cell, render_rows
 from ..policies import METHODS
-from ..weights import base_scenario, read_manifest, trained_preset
+from ..weights import base_scenario, read_manifest, shipped_entry, trained_preset
 from . import KEPT_DIR, RESULTS_DIR
 from .paper import PAPER
 
@@ -209,7 +209,7 @@ def training_seed(rec: dict, kept: str = "") -> int | None:
     if not _preset_batched(rec):
         return None
     if not opts:
-        return None if kept else int(read_manifest().get(base_scenario(rec["scenario"]), {}).get("seed", 0))
+        return None if kept else int((shipped_entry(rec["scenario"]) or {}).get("seed", 0))
     m = re.fullmatch(r"results/training/(.+)-seed(\d+)\.pt", str(opts.get("checkpoint", "")))
     presets = {trained_preset(rec["scenario"]), base_scenario(rec["scenario"])}
     names = {"checkpoint"}

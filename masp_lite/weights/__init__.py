@@ -22,9 +22,11 @@ manifest, another architecture, or weights trained for another scenario. Scenari
 team change, or with overrides such as ``num_agents=100``, use the weights of the preset
 they start from (``mpe-20to10`` -> ``mpe-20``): the networks are size-invariant, and
 this is the paper's zero-shot protocol. A manifest entry may also ship another preset's
-file for a preset, zero-shot (``"trained_on": "mpe-20"`` under ``mpe-50``): such an entry
-has no training of its own, and :func:`trained_preset` names the preset whose training
-seeds stand for it.
+file for a preset or a team change, zero-shot (``"trained_on": "mpe-20"`` under
+``mpe-50to20``, chosen on validation layouts; its ``note`` says why): such an entry has no
+training of its own, and :func:`trained_preset` names the preset whose training seeds stand
+for it. A scenario's own entry comes before the one of the preset it starts from
+(:func:`shipped_entry`).
 """
 from __future__ import annotations
 
@@ -45,7 +47,7 @@ from ..nets.masp import MASPNets
 
 __all__ = ["FORMAT", "HERE", "MANIFEST", "METHODS_DIR", "save_weights", "load_weights", "read_weights",
            "read_manifest", "trained_world", "method_checkpoint",
-           "default_checkpoint", "base_scenario", "trained_preset", "sha256", "atomic_write_bytes"]
+           "default_checkpoint", "base_scenario", "shipped_entry", "trained_preset", "sha256", "atomic_write_bytes"]
 
 FORMAT = "masp-lite/masp-weights/1"
 HERE = Path(__file__).resolve().parent
@@ -65,11 +67,18 @@ def base_scenario(scenario) -> str:
     return _BASE.get(name, name)
 
 
+def shipped_entry(scenario) -> dict | None:
+    """The manifest entry of the weights shipped for ``scenario``: its own (a team change may have
+    one), else that of :func:`base_scenario`; ``None`` when nothing ships for it."""
+    name = scenario if isinstance(scenario, str) else scenario.name
+    manifest = read_manifest()
+    return manifest.get(name, manifest.get(base_scenario(name)))
+
+
 def trained_preset(scenario) -> str:
     """The preset the shipped weights for ``scenario`` were trained on: :func:`base_scenario`,
     or the ``trained_on`` of its manifest entry when another preset's file ships zero-shot."""
-    name = base_scenario(scenario)
-    return read_manifest().get(name, {}).get("trained_on", name)
+    return (shipped_entry(scenario) or {}).get("trained_on", base_scenario(scenario))
 
 
 @functools.lru_cache(maxsize=64)
@@ -156,7 +165,7 @@ def method_checkpoint(method: str, scenario, presets) -> Path:
 def default_checkpoint(scenario) -> Path:
     """The shipped weights file for ``scenario``; a clear error when none is shipped."""
     name = base_scenario(scenario)
-    entry = read_manifest().get(name)
+    entry = shipped_entry(scenario)
     if entry is None:
         raise ValueError(f"masp: no shipped weights for scenario {name!r}; expected one of "
                          f"{sorted(read_manifest())} or a --checkpoint PATH")
