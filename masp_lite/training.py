@@ -43,11 +43,11 @@ import torch
 from .algos.mappo import NonFiniteError
 from .algos.masp_trainer import MASPTrainer
 from .config import TrainConfig
-from .envs import OVERRIDES, get_scenario, make
+from .envs import OVERRIDES, get_scenario, make, world_name
 from .evaluation import collision_rate, rollout, steps, success_rate
 from .parsing import field_types, parse_sets
 from .policies import get_factory, learned_methods
-from .weights import atomic_write_bytes, load_weights, save_weights, sha256
+from .weights import atomic_write_bytes, load_weights, save_weights, sha256, trained_world
 
 __all__ = ["train", "parse_config", "method_config", "evaluate_nets", "checkpoint_iterations", "trainer_class",
            "CSV_FIELDS", "EVAL_SEED"]
@@ -328,6 +328,11 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
             hint = " (an mlp variant is built for one team size: fine-tune it at the same N)" \
                 if any(k == "team_size" for k in set(a) | set(b) if a.get(k) != b.get(k)) else ""
             raise ValueError(f"--init {init}: architecture differs from the configured networks in {sides}{hint}")
+        came_from, world = trained_world(rec), trainer.world.scenario.world
+        if came_from != world and not set(world) & set(overrides or {}):
+            raise ValueError(f"--init {init}: trained in the world {world_name(came_from)}, this run's is "
+                             f"{world_name(world)}; to move weights between worlds on purpose, name the world "
+                             f"(--set " + " --set ".join(f"{k}={v}" for k, v in world.items()) + ")")
         trainer.nets.load_state_dict(nets.state_dict())
     lock = _take_lock(out)
     try:

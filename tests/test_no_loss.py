@@ -144,3 +144,12 @@ def test_init_and_resume_mismatches_name_both_sides(tmp_path):
     with pytest.raises(ValueError, match=r"team_size: --init 5, configured 20.*one team size"):
         train("mpe-20", _cfg(updates=1, goal_matcher="mlp", executor="mlp"), tmp_path / "mlp20", progress=False,
               init=mlp / "weights.pt")
+    # weights of another world: refused unless this run names its world (a deliberate move, as the shipped
+    # mpe-20 chain's last stage made from mpe2's world into the paper's)
+    mpe2 = tmp_path / "mpe2"
+    train("mpe-5", _cfg(updates=1), mpe2, progress=False, overrides={"integration": "mpe2", "landmark_spawn": "whole"})
+    with pytest.raises(ValueError, match=r"trained in the world integration=mpe2, landmark_spawn=whole, this run's "
+                                         r"is integration=velocity_first.*--set integration=velocity_first"):
+        train("mpe-20", _cfg(updates=1), tmp_path / "moved", progress=False, init=mpe2 / "weights.pt")
+    train("mpe-20", _cfg(updates=1), tmp_path / "moved", progress=False, init=mpe2 / "weights.pt",
+          overrides={"integration": "velocity_first", "landmark_spawn": "central"})
