@@ -36,7 +36,8 @@ EXAMPLES = [
     "reproduce --train --only mappo/ --in-turn   # retrain the MAPPO runs, one after the other",
 ]
 
-LEFT_AS_SHIPPED = ("The shipped MASP (mpe-5 and mpe-20, mpe-50 zero-shot) was trained with a curriculum whose "
+LEFT_AS_SHIPPED = ("The shipped MASP (mpe-5, mpe-20, and mpe-50 fine-tuned from mpe-20) was trained with a "
+                   "curriculum whose "
                    "settings have since left the product, so --train keeps it as shipped; MASP from random "
                    "networks with today's settings is retrained as faithful/ (the ablations' base) and "
                    "masp-budget/ (the RL baselines' budget).")
