@@ -37,10 +37,9 @@ EXAMPLES = [
 ]
 
 LEFT_AS_SHIPPED = ("The shipped MASP (mpe-5, mpe-20, and mpe-50 fine-tuned from mpe-20) was trained with a "
-                   "curriculum whose "
-                   "settings have since left the product, so --train keeps it as shipped; MASP from random "
-                   "networks with today's settings is retrained as faithful/ (the ablations' base) and "
-                   "masp-budget/ (the RL baselines' budget).")
+                   "curriculum whose settings have since left the product, so --train keeps it as shipped; "
+                   "MASP from random networks with today's settings is retrained as faithful/ (the ablations' "
+                   "base) and masp-budget/ (the RL baselines' budget).")
 
 
 def add_arguments(parser) -> None:

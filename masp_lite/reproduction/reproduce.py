@@ -211,11 +211,11 @@ def training_seed(rec: dict, kept: str = "") -> int | None:
     if not opts:
         return None if kept else int((shipped_entry(rec["scenario"]) or {}).get("seed", 0))
     m = re.fullmatch(r"results/training/(.+)-seed(\d+)\.pt", str(opts.get("checkpoint", "")))
-    presets = {trained_preset(rec["scenario"]), base_scenario(rec["scenario"])}
-    names = {"checkpoint"}
-    if kept:  # another preset's weights run with any_scenario
-        presets, names = {kept + name for name in SCENARIOS}, {"checkpoint", "any_scenario"}
-    if "checkpoint" in opts and set(opts) <= names and opts.get("any_scenario", True) and m and m.group(1) in presets:
+    if kept:  # another recipe: weights of any preset, run here with any_scenario
+        presets, allowed = {kept + name for name in SCENARIOS}, {"checkpoint", "any_scenario"}
+    else:
+        presets, allowed = {trained_preset(rec["scenario"]), base_scenario(rec["scenario"])}, {"checkpoint"}
+    if m and m.group(1) in presets and set(opts) <= allowed and opts.get("any_scenario", True) is True:
         return int(m.group(2))
     return None
 
@@ -723,10 +723,14 @@ def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:
             found = sorted((RESULTS_DIR / "training" / kept).glob("mpe-20-seed*.pt")) if kept else [None]
             runs += [(method, {} if k is None else {"checkpoint": f"results/training/{kept}{k.name}"}) for k in found]
         scenarios = _FIXED + _VARYING if table == "faithful" else ("mpe-20",)
-        return [(m, sc, {"method_options": {**opts, **({"any_scenario": True} if opts and base_scenario(sc) !=
-                                                        "mpe-20" else {})}})
-                for sc in scenarios for m, opts in runs
-                if not opts or get_scenario(sc).num_agents >= 20]  # kept mpe-20 weights fly 20 agents or more
+        jobs = []
+        for sc in scenarios:
+            for m, opts in runs:
+                if opts and get_scenario(sc).num_agents < 20:  # kept mpe-20 weights fly 20 agents or more
+                    continue
+                zero_shot = bool(opts) and base_scenario(sc) != "mpe-20"
+                jobs.append((m, sc, {"method_options": {**opts, **({"any_scenario": True} if zero_shot else {})}}))
+        return jobs
     if table == "per-step-time":
         return [(m, "mpe-50", {"num_envs": 1}) for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
     scenarios = {"mpe": ("mpe-5", "mpe-20", "mpe-50"), "mpe-varying": ("mpe-20to10", "mpe-50to20"),
