@@ -91,9 +91,6 @@ class NetConfig:
             raise ValueError(f"executor: expected one of {list(EXECUTORS)}, got {self.executor!r}")
         if self.action not in ACTIONS:
             raise ValueError(f"action: expected one of {list(ACTIONS)}, got {self.action!r}")
-        if self.action != "discrete" and (self.goal_matcher not in ("graph", "hungarian") or self.executor != "graph"):
-            raise ValueError(f"action {self.action!r} (drones): expected goal_matcher 'graph' or 'hungarian' and "
-                             f"executor 'graph', got {self.goal_matcher!r} and {self.executor!r}")
         if not isinstance(self.log_std_init, (int, float)) or not -10 <= self.log_std_init <= 2:
             raise ValueError(f"log_std_init: expected a number in [-10, 2], got {self.log_std_init!r}")
 

@@ -61,30 +61,32 @@ EVAL_SEED = 12_345
 def method_config(method: str | None, sets=(), scenario: str | None = None) -> tuple[str, TrainConfig, dict]:
     """``(method, config, scenario overrides)`` of ``train [--method METHOD] --set ...``.
 
-    The configuration is the method's settings (its ``nets`` and ``train`` in the method table,
-    :data:`masp_lite.policies.METHODS`), then ``sets``.
-    Without a method, the one whose settings ``sets`` give is meant (``--set
-    goal_matcher=random`` is ``masp-rg``, as the ablations' manifests were written), MASP by
-    default. One clear error for a method that is not trained here, a ``--set`` that would
-    make it another method, or a scenario the trainer does not run (drones).
+    The configuration is the method's settings for the scenario's world kind (its ``nets`` and
+    ``train`` in the method table, :data:`masp_lite.policies.METHODS`), then ``sets``.
+    Without a method, the first one whose settings ``sets`` give is meant (``--set
+    goal_matcher=random`` is ``masp-rg``, as the ablations' manifests were written; on drones
+    ``--set action=velocity`` is ``masp-velocity``), MASP by default. One clear error for a
+    method that is not trained for the world kind, or a ``--set`` that would make it another method.
     """
-    if scenario is not None and get_scenario(scenario).kind == "drone":
-        return _drone_method_config(method, sets, scenario)
-    table = learned_methods("particle")
+    kind = get_scenario(scenario).kind if scenario is not None else "particle"
+    table = learned_methods(kind)
     variants = {m: e["nets"] for m, e in table.items()}
+    given = dict(s.split("=", 1) for s in sets if "=" in s)
+    if kind == "particle" and "action" in given:
+        raise ValueError("train: --set action is for drone scenarios (drone-*); particle networks take MPE's "
+                         "discrete actions")
     if method is None:
-        cfg, _ = parse_config(sets)
-        got = {k: getattr(cfg.net, k) for k in ("goal_matcher", "executor")}
-        match = [m for m, v in variants.items() if v == got]
+        base = variants["masp"] if kind == "particle" else {"action": "throttle"}  # a world kind's defaults
+        cfg, _ = parse_config([f"{k}={v}" for k, v in base.items()] + list(sets))
+        match = [m for m, v in variants.items() if all(getattr(cfg.net, k) == x for k, x in v.items())]
         if not match:
-            raise ValueError(f"train: no method has the settings {got}; expected one of "
+            got = {k: getattr(cfg.net, k) for k in ("goal_matcher", "executor", "action")}
+            raise ValueError(f"train: no {kind} method has the settings {got}; expected one of "
                              + "; ".join(f"{m} {v}" for m, v in variants.items()))
         method = match[0]
     if method not in table:
-        raise ValueError(f"train: {method!r} is not a method trained here; expected one of {sorted(table)}")
-    if "action" in dict(s.split("=", 1) for s in sets if "=" in s):
-        raise ValueError("train: --set action is for drone scenarios (drone-*); particle networks take MPE's "
-                         "discrete actions")
+        raise ValueError(f"train: {method!r} is not a method trained on {kind} worlds; expected one of "
+                         f"{sorted(table)}")
     own = {**table[method]["nets"], **table[method].get("train", {})}
     cfg, overrides = parse_config([f"{k}={v}" for k, v in own.items()] + list(sets))
     for k in variants[method]:
@@ -102,22 +104,6 @@ def _layout(arch: dict) -> dict:
     out = {k: v for k, v in arch.items() if k != "global_step"}
     out["goal_matcher"] = same_networks.get(arch["goal_matcher"], arch["goal_matcher"])
     return out
-
-
-def _drone_method_config(method, sets, scenario) -> tuple[str, TrainConfig, dict]:
-    """:func:`method_config` for a drone scenario: ``masp`` (motor commands) or ``masp-velocity``."""
-    given = dict(s.split("=", 1) for s in sets if "=" in s)
-    drone_actions = {m: e["nets"]["action"] for m, e in learned_methods("drone").items()}
-    if method is None:
-        method = "masp-velocity" if given.get("action") == "velocity" else "masp"
-    if method not in drone_actions:
-        raise ValueError(f"train --method {method}: drone scenarios ({scenario!r}) train {sorted(drone_actions)}")
-    action = drone_actions[method]
-    if given.get("action", action) != action:
-        raise ValueError(f"train --method {method}: action is {action!r} for this method; --set action="
-                         f"{given['action']} makes another one ({sorted(drone_actions)})")
-    cfg, overrides = parse_config([f"action={action}", *sets])
-    return method, cfg, overrides
 
 
 def parse_config(sets) -> tuple[TrainConfig, dict]:

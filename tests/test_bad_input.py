@@ -335,4 +335,6 @@ def test_bench_train_has_a_drone_row(tmp_path):
     args = ["--scenarios", "drone-5", "--worlds", "2", "--threads", "1", "--json", str(out)]
     assert main(["bench", "train", *args]) == 0
     rows = json.loads(out.read_text())["env_steps_per_s"]["drone-5"]
-    assert set(rows) == {"masp", "masp-velocity", "masp (plain autograd)"} and all(v > 0 for v in rows.values())
+    baselines = {"h-mappo", "htamp", "mage-x", "mappo", "darl1n"}
+    assert set(rows) == {"masp", "masp-velocity", "masp (plain autograd)", *baselines}
+    assert all(v > 0 for v in rows.values())

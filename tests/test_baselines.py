@@ -94,10 +94,10 @@ def test_one_methods_weights_are_refused_by_another(tmp_path):
 
 def test_train_rejects_bad_methods_and_settings_before_writing(tmp_path, capsys):
     out = tmp_path / "run"
-    for argv, msg in [(["--method", "h-greedy", "--scenario", "mpe-5"], "not a method trained here"),
+    for argv, msg in [(["--method", "h-greedy", "--scenario", "mpe-5"], "not a method trained on particle worlds"),
                       (["--method", "h-mappo", "--scenario", "mpe-5", "--set", "executor=graph"], "makes another one"),
-                      (["--method", "htamp", "--scenario", "drone-5"], "drone scenarios ('drone-5') train"),
-                      (["--scenario", "mpe-5", "--set", "executor=nearest"], "no method has the settings")]:
+                      (["--method", "masp-rg", "--scenario", "drone-5"], "not a method trained on drone worlds"),
+                      (["--scenario", "mpe-5", "--set", "executor=nearest"], "no particle method has the settings")]:
         assert main(["train", *argv, "--out", str(out)]) == 2
         assert msg in capsys.readouterr().err
         assert not out.exists()

@@ -135,9 +135,10 @@ def test_policy_flies_shipped_shapes_and_refuses_the_wrong_weights(tmp_path):
 
 
 @pytest.mark.parametrize("method, sets, match", [
-    ("h-mappo", [], "drone scenarios .* train"),
+    ("masp-rg", [], "not a method trained on drone worlds"),
     ("masp", ["action=velocity"], "makes another one"),
-    (None, ["goal_matcher=random"], "goal_matcher 'graph' or 'hungarian'"),
+    ("h-mappo", ["executor=graph"], "makes another one"),
+    (None, ["executor=nearest"], "no drone method has the settings"),
 ])
 def test_bad_drone_training_settings_are_one_clear_error(method, sets, match):
     with pytest.raises(ValueError, match=match):

@@ -30,7 +30,8 @@ def test_the_old_tables_are_views_of_the_one_table():
     assert set(ABLATIONS) == {"masp-rg", "gm-mlp", "cae-mlp"}
     assert set(BASELINES) == {"h-mappo", "htamp", "mage-x", "mappo", "darl1n"}
     assert METHOD_SETTINGS["mage-x"]["global_step"] == 1000
-    assert DRONE_METHODS == {"masp": "throttle", "masp-velocity": "velocity"}
+    assert DRONE_METHODS == {"masp": "throttle", "masp-velocity": "velocity",
+                             **{m: "throttle" for m in ("h-mappo", "htamp", "mage-x", "mappo", "darl1n")}}
 
 
 def test_no_policy_class_redirects_itself():

@@ -168,7 +168,7 @@ def test_parse_config_and_cli_errors(tmp_path, capsys):
     assert parse_config(["team_after=none"])[1] == {"team_after": None}  # the grammar of every command
     assert parse_config(["team_after=10"])[1] == {"team_after": 10}
     assert main(["train", "--method", "nope", "--scenario", "mpe-5", "--out", str(tmp_path / "x")]) == 2
-    assert "not a method trained here" in capsys.readouterr().err
+    assert "not a method trained on particle worlds" in capsys.readouterr().err
     assert main(["train", "--scenario", "mpe-5", "--out", str(tmp_path / "y"), "--resume", "--quiet"]) == 2
     assert not (tmp_path / "y").exists()
 

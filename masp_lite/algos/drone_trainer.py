@@ -7,7 +7,9 @@ crash charge on R_CAE:
 
 1. every ``global_step`` steps the Goal Matcher draws distinct goals for the flying drones
    (``goal_matcher="graph"``, trained on R_GM against the 3-D Hungarian assignment) or takes
-   the Hungarian assignment (``goal_matcher="hungarian"``: an executor-only curriculum stage);
+   the Hungarian assignment (``goal_matcher="hungarian"``: MASP's executor-only curriculum
+   stage, and ``h-mappo``); the RL baselines' other goal sources and executor views are the
+   particle world's settings (:mod:`masp_lite.nets.variants`), in 3-D;
 2. the executor (:class:`~masp_lite.nets.drones.DroneExecutor`) samples a Gaussian action per
    drone; the clipped sample is 4 motor commands (``action="throttle"``, the paper's) or a
    velocity set-point that :class:`~masp_lite.planners.geometric.LeeController` turns into
@@ -21,7 +23,9 @@ crash charge on R_CAE:
 *penalty* every step, crashing early would save penalties. To make a crash never pay, the
 step a drone crashes it is also charged the distance penalty of its crash site for every
 step left in the episode: ``R = R_CAE − β · (T − t − 1) · dist / (world_size / 2)``. A drone
-that hovers where it is does at least as well, so flying on always beats crashing.
+that hovers where it is does at least as well, so flying on always beats crashing. Without
+goals (``mappo``, ``darl1n``) ``dist`` is the coverage reward's distance term (the mean over
+landmarks of the nearest drone's distance, the crashed drone still counted) at the crash.
 """
 from __future__ import annotations
 
@@ -58,9 +62,6 @@ class DroneMASPTrainer(MASPTrainer):
 
     def __init__(self, scenario, cfg, seed: int = 0, overrides: dict | None = None):
         super().__init__(scenario, cfg, seed, overrides)
-        if cfg.net.goal_matcher not in ("graph", "hungarian"):
-            raise ValueError(f"drone training: expected goal_matcher 'graph' or 'hungarian', got "
-                             f"{cfg.net.goal_matcher!r}")
         self.controller = velocity_controller() if cfg.net.action == "velocity" else None
 
     def act(self, out, obs):
@@ -70,12 +71,17 @@ class DroneMASPTrainer(MASPTrainer):
         return actions, gaussian_log_prob(mean, log_std, actions), motor_commands(actions, obs, self.controller)
 
     def executor_reward(self, obs, goals, info, alive, t):
-        """R_CAE in 3-D, minus :func:`crash_charge` for the drones that crashed this step."""
+        """R_CAE in 3-D (the goal-free baselines' coverage reward), minus :func:`crash_charge` for the drones
+        that crashed this step."""
         r = super().executor_reward(obs, goals, info, alive, t)
         crashed = alive & ~obs["alive"]
         if bool(crashed.any()):
-            goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(obs["agent_pos"]))
-            dist = (goal_pos - obs["agent_pos"]).norm(dim=-1)
+            if goals is None:  # the team's distance term: mean over landmarks of the nearest drone, crashed ones too
+                d = torch.cdist(obs["landmark_pos"], obs["agent_pos"]).masked_fill(~alive.unsqueeze(1), float("inf"))
+                dist = d.min(-1).values.mean(-1, keepdim=True).expand_as(crashed)
+            else:
+                goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(obs["agent_pos"]))
+                dist = (goal_pos - obs["agent_pos"]).norm(dim=-1)
             r = r - crash_charge(dist, crashed, self.horizon - t - 1, self.world.scenario.world_size,
                                  self.cfg.reward.distance_coef)
         return r

@@ -47,20 +47,21 @@ class GoalMatcherMLP(nn.Module):
     ``agent_x`` and ``goal_x`` and ignores the rest); ``team_size`` agents and as many goals.
     Dropped agents' positions are zeroed."""
 
-    def __init__(self, width: int = 32, team_size: int = 20):
+    def __init__(self, width: int = 32, team_size: int = 20, dims: int = 2):
         super().__init__()
-        self.team_size = team_size
+        self.team_size, self.dims = team_size, dims
         n = team_size
-        self.net = mlp([n * 2 + n * 2, 4 * width, 4 * width, n])
+        self.net = mlp([n * dims + n * dims, 4 * width, 4 * width, n])
         self.register_buffer("order", agent_first(n), persistent=False)
 
     def forward(self, agent_x, goal_x, dist, alive, goal_mask=None):
         B, N = agent_x.shape[:2]
         _check_size("gm-mlp", self.team_size, N)
         _check_size("gm-mlp (goals)", self.team_size, goal_x.shape[1])
-        a = agent_x[..., :2] * alive.unsqueeze(-1).to(agent_x.dtype)        # positions / (world_size / 2)
+        D = self.dims
+        a = agent_x[..., :D] * alive.unsqueeze(-1).to(agent_x.dtype)        # positions / (world_size / 2)
         agents = a[:, self.order].reshape(B, N, -1)                         # row k: agent k first
-        x = torch.cat([agents, goal_x[..., :2].reshape(B, 1, -1).expand(B, N, -1)], dim=-1)
+        x = torch.cat([agents, goal_x[..., :D].reshape(B, 1, -1).expand(B, N, -1)], dim=-1)
         logits = self.net(x)
         if goal_mask is not None:
             logits = logits.masked_fill(~goal_mask.unsqueeze(1), float("-inf"))

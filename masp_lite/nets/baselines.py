@@ -47,14 +47,24 @@ from torch import nn
 
 from .encoders import chunked, mlp, relu_grad
 
-__all__ = ["NearestMLP", "AttentionSubgraph", "AttentionPool", "RadiusMean", "nearest_others"]
+__all__ = ["NearestMLP", "AttentionSubgraph", "AttentionPool", "RadiusMean", "nearest_others", "distance_feature",
+           "far"]
 
 
 CHUNK_ROWS = 20_000
 """(agent, other) rows :class:`_PoolKernel` processes at a time."""
 
-FAR = (0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
-"""Pair features of a missing neighbour: no offset, at the sensing edge, not moving, not self."""
+
+def distance_feature(pair: torch.Tensor) -> torch.Tensor:
+    """(...): the clipped distance of pair features ``[rel (D), min(dist, sense) / sense, dv (D), is_self]``."""
+    return pair[..., (pair.shape[-1] - 2) // 2]
+
+
+def far(features: int, dtype=None, device=None) -> torch.Tensor:
+    """Pair features of a missing neighbour: no offset, at the sensing edge, not moving, not self."""
+    out = torch.zeros(features, dtype=dtype, device=device)
+    out[(features - 2) // 2] = 1.0
+    return out
 
 
 def nearest_others(pair: torch.Tensor, alive: torch.Tensor, count: int, key: torch.Tensor | None = None):
@@ -65,7 +75,7 @@ def nearest_others(pair: torch.Tensor, alive: torch.Tensor, count: int, key: tor
     are flagged missing in the returned mask (B, N, count).
     """
     B, N = pair.shape[:2]
-    rank = pair[..., 2] if key is None else key
+    rank = distance_feature(pair) if key is None else key
     eye = torch.eye(N, dtype=torch.bool, device=pair.device)
     bad = eye.unsqueeze(0) | ~alive.unsqueeze(1)                           # [b, k, j]: j is k or dropped
     k = min(count, N)
@@ -80,8 +90,7 @@ def nearest_others(pair: torch.Tensor, alive: torch.Tensor, count: int, key: tor
 def _gather_pairs(pair, idx, ok):
     F = pair.shape[-1]
     rows = torch.gather(pair, 2, idx.unsqueeze(-1).expand(*idx.shape, F))
-    far = torch.tensor(FAR, dtype=pair.dtype, device=pair.device)
-    return torch.where(ok.unsqueeze(-1), rows, far)
+    return torch.where(ok.unsqueeze(-1), rows, far(F, pair.dtype, pair.device))
 
 
 class _PoolKernel(torch.autograd.Function):
@@ -234,8 +243,8 @@ class RadiusMean(nn.Module):
 
     def forward(self, pair: torch.Tensor, groups, alive: torch.Tensor) -> torch.Tensor:
         N = pair.shape[1]
-        # pair feature 2 is min(dist, SENSE) / SENSE: below 1 means within SENSE = 1 m, the one-hop radius
-        near = (pair[..., 2] < 1.0) & alive.unsqueeze(1) & ~torch.eye(N, dtype=torch.bool, device=pair.device)
+        # the distance feature is min(dist, sense) / sense: below 1 means within the sensing radius, one hop
+        near = (distance_feature(pair) < 1.0) & alive.unsqueeze(1) & ~torch.eye(N, dtype=torch.bool, device=pair.device)
         w = near.to(pair.dtype)
         w = w / w.sum(2, keepdim=True).clamp(min=1.0)
         if chunked() and not pair.requires_grad:

@@ -47,9 +47,11 @@ from .masp import (
     ExecutorCritic,
     GoalMatcher,
     GoalMatcherCritic,
+    critic_extra,
     global_features,
     gm_inputs,
     goal_features,
+    landmark_features,
     pair_features,
 )
 
@@ -60,7 +62,7 @@ DRONE_SENSE = 2.0
 """Metres at which neighbour vectors are clipped."""
 ANGVEL_SCALE = 10.0
 """rad/s: body rates are divided by it."""
-PAIR_FEATURES, GOAL_FEATURES, STATE_FEATURES = 8, 8, 17
+PAIR_FEATURES, GOAL_FEATURES, STATE_FEATURES, LANDMARK_FEATURES = 8, 8, 17, 9
 #: Action dimensions per drone for each ``NetConfig.action``.
 ACTION_SIZE = {"throttle": 4, "velocity": 3}
 
@@ -91,13 +93,14 @@ def gaussian_entropy(log_std: torch.Tensor, shape) -> torch.Tensor:
 class DroneExecutor(nn.Module):
     """Low-level actor: ``forward(pair, groups, alive, goal_f, state_f) -> (mean, log_std)``, (B, N, A) and (A,)."""
 
-    def __init__(self, width: int = 32, gcn_layers: int = 1, action: str = "throttle", log_std_init: float = -1.6):
+    def __init__(self, width: int = 32, gcn_layers: int = 1, action: str = "throttle", log_std_init: float = -1.6,
+                 fusion: nn.Module | None = None, goal_embed: nn.Module | None = None):
         super().__init__()
         if action not in ACTION_SIZE:
             raise ValueError(f"action: expected one of {list(ACTION_SIZE)} for drones, got {action!r}")
         A = ACTION_SIZE[action]
-        self.fusion = GroupInformationFusion(PAIR_FEATURES, width, gcn_layers)
-        self.goal_embed = mlp([GOAL_FEATURES, width], last_activation=True)
+        self.fusion = GroupInformationFusion(PAIR_FEATURES, width, gcn_layers) if fusion is None else fusion
+        self.goal_embed = mlp([GOAL_FEATURES, width], last_activation=True) if goal_embed is None else goal_embed
         self.state_embed = mlp([STATE_FEATURES, width], last_activation=True)
         self.head = mlp([3 * width, width, width, A])
         last = self.head[-1]
@@ -130,9 +133,16 @@ class DroneNets(nn.Module):
         self.config = c = config if config is not None else NetConfig(**arch)
         if c.world != "drone":
             raise ValueError(f"DroneNets: expected a drone action ({list(ACTION_SIZE)}), got {c.action!r}")
-        self.gm = GoalMatcher(c.width, dims=3)
+        if c.fixed_size and c.team_size < 2:
+            raise ValueError(f"DroneNets: an mlp variant needs team_size (the drones it is built for), got "
+                             f"{c.team_size}")
+        variant = c.goal_matcher in ("mlp", "none") or c.executor != "graph"
+        if variant:  # an RL baseline's parts, beside MASP's (built in this order: the same initial weights)
+            from . import variants
+        self.gm = variants.goal_matcher(c, dims=3) if c.goal_matcher == "mlp" else GoalMatcher(c.width, dims=3)
         self.gm_critic = GoalMatcherCritic(c.width, dims=3)
-        self.cae = DroneExecutor(c.width, c.gcn_layers, c.action, c.log_std_init)
+        fusion, landmarks = variants.executor_parts(c, PAIR_FEATURES, LANDMARK_FEATURES) if variant else (None, None)
+        self.cae = DroneExecutor(c.width, c.gcn_layers, c.action, c.log_std_init, fusion, landmarks)
         self.cae_critic = ExecutorCritic(c.width)
 
     @property
@@ -147,12 +157,18 @@ class DroneNets(nn.Module):
         a, g, _ = gm_inputs(obs, scale, DRONE_SPEED)
         return self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
 
-    def cae_inputs(self, obs: dict, goals: torch.Tensor, perm: torch.Tensor) -> tuple:
-        """Executor inputs ``(pair, groups, alive, goal_f, state_f)`` for goal indices ``goals`` (B, N)."""
+    def cae_inputs(self, obs: dict, goals: torch.Tensor | None, perm: torch.Tensor) -> tuple:
+        """Executor inputs ``(pair, groups, alive, goal_f, state_f)`` for goal indices ``goals`` (B, N);
+        ``goals`` None (the goal-free baselines): every landmark instead
+        (:func:`~masp_lite.nets.masp.landmark_features`)."""
         pos, vel = obs["agent_pos"], obs["agent_vel"]
-        goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos))
+        if goals is None:
+            goal_f = landmark_features(pos, vel, obs["landmark_pos"], obs["covered"], DRONE_SPEED)
+        else:
+            goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos))
+            goal_f = goal_features(pos, vel, goal_pos, DRONE_SPEED)
         return (pair_features(pos, vel, self.sense, DRONE_SPEED), group_division(perm, self.config.group_size),
-                obs["alive"], goal_features(pos, vel, goal_pos, DRONE_SPEED), drone_state_features(obs))
+                obs["alive"], goal_f, drone_state_features(obs))
 
     def cae_logits(self, inputs: tuple):
         """``(mean, log_std)`` of the executor's Gaussian (the name is the particle networks')."""
@@ -161,4 +177,4 @@ class DroneNets(nn.Module):
     def cae_forward(self, inputs: tuple, obs: dict, horizon: int):
         """``((mean, log_std), values)`` from one pass of the fusion."""
         feats = self.cae.features(*inputs)
-        return self.cae.distribution(feats), self.cae_critic(feats, global_features(obs, horizon))
+        return self.cae.distribution(feats), self.cae_critic(feats, critic_extra(self.config, obs, horizon))

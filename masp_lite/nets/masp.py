@@ -43,8 +43,8 @@ from .encoders import CrossEncoder, SelfEncoder, mlp
 from .fusion import GroupInformationFusion, group_division
 
 __all__ = ["GoalMatcher", "GoalMatcherCritic", "CoordinatedActionExecutor", "ExecutorCritic",
-           "pair_features", "goal_features", "landmark_features", "obstacle_features", "global_features", "gm_inputs",
-           "MASPNets", "MAX_SPEED", "SENSE"]
+           "pair_features", "goal_features", "landmark_features", "obstacle_features", "global_features",
+           "critic_extra", "gm_inputs", "MASPNets", "MAX_SPEED", "SENSE"]
 
 MAX_SPEED = 2.0
 """MPE's terminal speed under a constant action (m/s); velocities are divided by it."""
@@ -86,18 +86,19 @@ def goal_features(pos: torch.Tensor, vel: torch.Tensor, goal_pos: torch.Tensor, 
 
 
 def landmark_features(pos: torch.Tensor, vel: torch.Tensor, landmark_pos: torch.Tensor,
-                      covered: torch.Tensor) -> torch.Tensor:
-    """(B, N, M, 7): every landmark seen from every agent.
+                      covered: torch.Tensor, max_speed: float = MAX_SPEED) -> torch.Tensor:
+    """(B, N, M, 2D + 3): every landmark seen from every agent, in D = 2 or 3 dimensions.
 
-    ``[unit direction (2), min(dist, 1 m), log(1 + dist), covered, own velocity / MAX_SPEED (2)]``,
+    ``[unit direction (D), min(dist, 1 m), log(1 + dist), covered, own velocity / max_speed (D)]``,
     the goal features of MASP's executor (:func:`goal_features`) for each landmark, plus whether it is covered now.
     """
-    rel = landmark_pos.unsqueeze(1) - pos.unsqueeze(2)                    # (B, N, M, 2)
+    rel = landmark_pos.unsqueeze(1) - pos.unsqueeze(2)                    # (B, N, M, D)
     d = rel.norm(dim=-1, keepdim=True)
-    B, N, M = rel.shape[:3]
+    B, N, M, D = rel.shape
     cov = covered.to(pos.dtype).view(B, 1, M, 1).expand(B, N, M, 1)
-    v = (vel / MAX_SPEED).unsqueeze(2).expand(B, N, M, 2)
+    v = (vel / max_speed).unsqueeze(2).expand(B, N, M, D)
     return torch.cat([rel / d.clamp(min=1e-6), d.clamp(max=1.0), torch.log1p(d), cov, v], dim=-1)
+
 
 def obstacle_features(pos: torch.Tensor, obstacle_pos: torch.Tensor, count: int) -> torch.Tensor:
     """(B, N, 3 * count): the ``count`` nearest obstacles, nearest first.
@@ -128,6 +129,15 @@ def global_features(obs: dict, horizon: int) -> torch.Tensor:
     rea = obs["reached"].to(cov.dtype).mean(-1, keepdim=True)
     left = 1.0 - obs["t"].to(cov.dtype).unsqueeze(-1) / horizon
     return torch.cat([cov, rea, left], dim=-1).unsqueeze(1).expand(-1, obs["alive"].shape[1], -1)
+
+
+def critic_extra(config: NetConfig, obs: dict, horizon: int) -> torch.Tensor:
+    """The executor critic's centralized inputs: :func:`global_features`, of which ``darl1n``'s
+    (``executor="radius"``) keeps only the time left (its value sees the one-hop view and the time)."""
+    extra = global_features(obs, horizon)
+    if config.executor == "radius":
+        extra = torch.cat([torch.zeros_like(extra[..., :2]), extra[..., 2:]], dim=-1)
+    return extra
 
 
 def gm_inputs(obs: dict, scale: float, max_speed: float = MAX_SPEED):
@@ -302,7 +312,4 @@ class MASPNets(nn.Module):
     def cae_forward(self, inputs: tuple, obs: dict, horizon: int) -> tuple[torch.Tensor, torch.Tensor]:
         """Executor logits (B, N, 5) and critic values (B, N) from one pass of the fusion."""
         feats = self.cae.features(*inputs)
-        extra = global_features(obs, horizon)
-        if self.config.executor == "radius":  # darl1n: the value sees the one-hop view and the time only
-            extra = torch.cat([torch.zeros_like(extra[..., :2]), extra[..., 2:]], dim=-1)
-        return self.cae.head(torch.cat(feats, dim=-1)), self.cae_critic(feats, extra)
+        return self.cae.head(torch.cat(feats, dim=-1)), self.cae_critic(feats, critic_extra(self.config, obs, horizon))

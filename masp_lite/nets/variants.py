@@ -1,7 +1,8 @@
 """The parts that turn MASP's networks into an ablation or an RL baseline (chosen by NetConfig).
 
-:class:`~masp_lite.nets.masp.MASPNets` is MASP's Goal Matcher and Coordinated Action
-Executor; a :class:`~masp_lite.config.NetConfig` of another method swaps one part:
+:class:`~masp_lite.nets.masp.MASPNets` (and :class:`~masp_lite.nets.drones.DroneNets`, in 3-D)
+is MASP's Goal Matcher and Coordinated Action Executor; a :class:`~masp_lite.config.NetConfig`
+of another method swaps one part:
 
 * the Goal Matcher for an MLP (``goal_matcher="mlp"``, "GM w.o. Graph", :mod:`.ablations`);
 * the executor's Group Information Fusion for another view of the team (``executor``:
@@ -21,9 +22,9 @@ from .baselines import AttentionPool, AttentionSubgraph, NearestMLP, RadiusMean
 __all__ = ["goal_matcher", "executor_parts"]
 
 
-def goal_matcher(c: NetConfig) -> nn.Module:
-    """The "GM w.o. Graph" Goal Matcher (``goal_matcher="mlp"``), built for ``c.team_size`` agents."""
-    return GoalMatcherMLP(c.width, c.team_size)
+def goal_matcher(c: NetConfig, dims: int = 2) -> nn.Module:
+    """The "GM w.o. Graph" Goal Matcher (``goal_matcher="mlp"``), built for ``c.team_size`` agents in ``dims`` D."""
+    return GoalMatcherMLP(c.width, c.team_size, dims)
 
 
 def executor_parts(c: NetConfig, pair_features: int, landmark_features: int

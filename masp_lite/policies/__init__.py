@@ -16,7 +16,8 @@ The methods live in this package:
 :mod:`.reference` (``random``, ``h-greedy``, ``h-capt``, ``h-bottleneck``), :mod:`.planners` (the "(H)" planners),
 :mod:`.drones` and :mod:`.drone_planners` (the drone versions of ``h-greedy`` and of the (H) planners)
 and :mod:`.masp` (``masp``, its ablations ``masp-rg``,
-``gm-mlp``, ``cae-mlp``, and the RL baselines ``h-mappo``, ``htamp``, ``mage-x``, ``mappo``, ``darl1n``).
+``gm-mlp``, ``cae-mlp``, and the RL baselines ``h-mappo``, ``htamp``, ``mage-x``, ``mappo``, ``darl1n``)
+and :mod:`.drone_masp` (``masp``, ``masp-velocity`` and the RL baselines on drones).
 """
 from __future__ import annotations
 
@@ -46,11 +47,23 @@ class Policy(Protocol):
 
 _GRAPH = {"goal_matcher": "graph", "executor": "graph"}
 _TEAM_SIZES = ("mpe-5", "mpe-20", "mpe-50")
+_DRONE_SIZES = ("drone-5", "drone-20")
 
 
-def _learned(group: str, goal_matcher: str, executor: str, weights: tuple) -> dict:
-    return {"policy": "masp:MASPPolicy", "group": group, "nets": {"goal_matcher": goal_matcher, "executor": executor},
-            "weights": weights}
+def _learned(group: str, goal_matcher: str, executor: str, weights: tuple, kind: str = "particle") -> dict:
+    nets = {"goal_matcher": goal_matcher, "executor": executor}
+    if kind == "drone":  # the paper's drone action: a throttle command per motor
+        nets["action"] = "throttle"
+    return {"policy": "drone_masp:DroneMASPPolicy" if kind == "drone" else "masp:MASPPolicy", "group": group,
+            "nets": nets, "weights": weights}
+
+
+def _baseline(goal_matcher: str, executor: str, train: dict | None = None, drone_weights: tuple = ()) -> dict:
+    """An RL baseline's entries: trained from scratch on each particle preset, and on drone-5 then drone-20
+    (``drone_weights``: the drone presets whose weights are packaged; none: ``checkpoint=`` is needed)."""
+    extra = {"train": train} if train else {}
+    return {"particle": {**_learned("baseline", goal_matcher, executor, _TEAM_SIZES), **extra},
+            "drone": {**_learned("baseline", goal_matcher, executor, drone_weights, "drone"), **extra}}
 
 
 #: The one method table (data): name -> world kind -> ``policy`` (``"module:attribute"`` in this
@@ -71,20 +84,20 @@ METHODS: dict[str, dict[str, dict]] = {
     "h-rrtstar": {"particle": {"policy": "planners:HRRTStar"}, "drone": {"policy": "drone_planners:DroneHRRTStar"}},
     "h-voronoi": {"particle": {"policy": "planners:HVoronoi"}, "drone": {"policy": "drone_planners:DroneHVoronoi"}},
     "masp": {"particle": {"policy": "masp:MASPPolicy", "nets": _GRAPH, "weights": "shipped"},
-             "drone": {"policy": "drone_masp:DroneMASPPolicy", "nets": {"action": "throttle"}, "weights": "shipped"}},
-    "masp-velocity": {"drone": {"policy": "drone_masp:DroneMASPPolicy", "nets": {"action": "velocity"},
-                                "weights": ("drone-5", "drone-20")}},
+             "drone": {"policy": "drone_masp:DroneMASPPolicy", "nets": {"executor": "graph", "action": "throttle"},
+                       "weights": "shipped"}},
+    "masp-velocity": {"drone": {"policy": "drone_masp:DroneMASPPolicy",
+                                "nets": {"executor": "graph", "action": "velocity"}, "weights": _DRONE_SIZES}},
     # the paper's ablations (trained on mpe-20)
     "masp-rg": {"particle": _learned("ablation", "random", "graph", ("mpe-20",))},
     "gm-mlp": {"particle": _learned("ablation", "mlp", "graph", ("mpe-20",))},
     "cae-mlp": {"particle": _learned("ablation", "graph", "mlp", ("mpe-20",))},
     # the RL baselines (section "Baselines", masp_lite.nets.baselines)
-    "h-mappo": {"particle": _learned("baseline", "hungarian", "nearest", _TEAM_SIZES)},
-    "htamp": {"particle": _learned("baseline", "mlp", "mlp", _TEAM_SIZES)},
-    "mage-x": {"particle": {**_learned("baseline", "graph", "subgraph", _TEAM_SIZES),
-                            "train": {"global_step": 1000}}},  # goals once, at the start (past every horizon)
-    "mappo": {"particle": _learned("baseline", "none", "attention", _TEAM_SIZES)},
-    "darl1n": {"particle": _learned("baseline", "none", "radius", _TEAM_SIZES)},
+    "h-mappo": _baseline("hungarian", "nearest"),
+    "htamp": _baseline("mlp", "mlp"),
+    "mage-x": _baseline("graph", "subgraph", {"global_step": 1000}),  # goals once, at the start (past every horizon)
+    "mappo": _baseline("none", "attention"),
+    "darl1n": _baseline("none", "radius"),
 }
 
 

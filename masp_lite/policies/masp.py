@@ -64,34 +64,38 @@ class MASPPolicy:
     of them once every one has been reached); fixed teams choose among all landmarks.
     """
 
+    kind = "particle"  # the world kind; the drone policy (:mod:`.drone_masp`) is this class with a Gaussian action
+
     def __init__(self, world, checkpoint: str | None = None, seed: int = 0, global_step: int | None = None,
                  deterministic: bool = True, any_scenario: bool = False, decode: str = "joint",
                  resample: bool = False, method: str = "masp"):
-        if method not in VARIANTS:
-            raise ValueError(f"method: expected one of {sorted(VARIANTS)}, got {method!r}")
+        table = learned_methods(self.kind)
+        if method not in table:
+            raise ValueError(f"method: expected one of {sorted(table)}, got {method!r}")
         name = self.method = method
-        if getattr(world.scenario, "kind", None) != "particle":
-            raise ValueError(f"{name}: expected a particle world (mpe-* scenario)")
+        if getattr(world.scenario, "kind", None) != self.kind:
+            raise ValueError(f"{name}: expected a {self.kind} world ({'drone' if self.kind == 'drone' else 'mpe'}-* "
+                             "scenario)")
         self.world = world
         if isinstance(checkpoint, torch.nn.Module):  # networks in memory (:meth:`from_nets`): taken as they are
             self.nets, self.meta = checkpoint, {}
         else:
-            if checkpoint is None and _LEARNED[name]["weights"] != "shipped":
-                checkpoint = method_checkpoint(name, world.scenario, _LEARNED[name]["weights"])
+            if checkpoint is None and table[name]["weights"] != "shipped":
+                checkpoint = method_checkpoint(name, world.scenario, table[name]["weights"])
             self.nets, self.meta = load_weights(checkpoint, scenario=world.scenario, any_scenario=any_scenario)
             self.nets.eval()
-            self._check_variant(name)
+            self._check_variant(name, {m: e["nets"] for m, e in table.items()})
         self.resample = bool(resample)
         gs = self.nets.arch["global_step"] if global_step is None else global_step
         if isinstance(gs, bool) or not isinstance(gs, int) or gs < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
         self._setup(gs, deterministic, seed, decode)
 
-    def _check_variant(self, name):
-        c, want = self.nets.config, VARIANTS[name]
+    def _check_variant(self, name, variants):
+        c, want = self.nets.config, variants[name]
         got = {k: getattr(c, k) for k in want}
         if got != want:
-            other = [m for m, v in VARIANTS.items() if all(getattr(c, k) == x for k, x in v.items())]
+            other = [m for m, v in variants.items() if all(getattr(c, k) == x for k, x in v.items())]
             raise ValueError(f"{name}: the checkpoint's networks are {got}, expected {want}"
                              + (f"; these are {other[0]} weights: use that method" if other else ""))
         if c.fixed_size and self.world.num_agents != c.team_size:
@@ -154,5 +158,10 @@ class MASPPolicy:
             self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
         B, N = obs["alive"].shape
         perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(obs["alive"].device)
-        actions = self._pick(self.nets.cae_logits(self.nets.cae_inputs(obs, self.goals, perm)))
+        return self.action(self.nets.cae_logits(self.nets.cae_inputs(obs, self.goals, perm)), obs)
+
+    def action(self, out, obs) -> torch.Tensor:
+        """The world's actions from the executor's output: MPE's action ids (the most likely, or sampled;
+        dropped agents send 0)."""
+        actions = self._pick(out)
         return torch.where(obs["alive"], actions, torch.zeros_like(actions))
