@@ -63,6 +63,8 @@ def test_a_baseline_trains_on_drones_and_flies_as_its_own_method(method, tmp_pat
         make_policy(other, world, checkpoint=str(tmp_path / "weights.pt"))
     with pytest.raises(ValueError, match="drone-world networks.*particle world"):
         make_policy(method, make("mpe-5", num_envs=1), checkpoint=str(tmp_path / "weights.pt"))
+    with pytest.raises(ValueError, match="trained for 'drone-5'; expected weights for 'drone-20'"):
+        make_policy(method, make("drone-20", num_envs=1), checkpoint=str(tmp_path / "weights.pt"))
 
 
 @pytest.mark.parametrize("method", ["h-mappo", "mappo"])

@@ -181,8 +181,9 @@ def test_drone_claims_are_computed_from_the_records():
     assert rows[("MASP SR ≥ 0.95", "drone-20")][3:] == ["1.000", "yes"]
     assert rows[("MASP SR ≥ 0.99", "drone-5")][3:] == ["—", "—"]
     assert rows[("MASP (velocity) SR ≥ 0.95", "drone-20")][3:] == ["—", "—"]   # the variant: its own rows
+    vel = {"checkpoint": "results/training/masp-velocity/drone-20-seed0.pt"}  # a kept training seed
     velocity = {(r[0], r[1]): r for r in rp.build("drone-claims", records + [
-        {**_rec("masp-velocity", "drone-20", 350.0), "sr": {"mean": 0.96, "std": 0.1}}]).rows}
+        {**_rec("masp-velocity", "drone-20", 350.0, method_options=vel), "sr": {"mean": 0.96, "std": 0.1}}]).rows}
     assert velocity[("MASP (velocity) SR ≥ 0.95", "drone-20")][3:] == ["0.960", "yes"]
     assert velocity[("MASP (velocity) fewer Steps than every (H) planner", "drone-20")][3:] == \
         ["350.00 vs (H)RRT* 400.00", "yes"]
@@ -202,6 +203,30 @@ def test_drone_claims_are_computed_from_the_records():
     rows = {(r[0], r[1]): r for r in rp.build("drone-claims", five).rows}
     assert rows[("(H)Voronoi the best (H) planner (Steps)", "drone-5")][3:] == ["(H)ORCA 140.00", "no"]
     assert rows[("Every (H) planner SR > 0.90", "drone-5")][3:] == ["lowest (H)Voronoi 0.850", "no"]
+
+
+def test_drone_rl_claims_are_computed_from_the_kept_seeds():
+    def kept(method, sc, steps, sr, seed=0, cr=0.1):
+        rec = _rec(method, sc, steps, method_options={"checkpoint": f"results/training/{method}/{sc}-seed{seed}.pt"})
+        return {**rec, "sr": {"mean": sr, "std": 0.0}, "cr": {"mean": cr, "std": 0.0}}
+    five = [kept("h-mappo", "drone-5", 180.0, 1.0), kept("mage-x", "drone-5", 200.0, 0.95),
+            kept("mappo", "drone-5", 290.0, 0.4), kept("darl1n", "drone-5", 280.0, 0.6),
+            kept("htamp", "drone-5", 295.0, 0.3), kept("htamp", "drone-5", 285.0, 0.5, seed=1)]
+    records = [_rec("masp", "drone-5", 150.0), _rec("masp", "drone-20", 330.0), *five,
+               kept("mage-x", "drone-20", 500.0, 0.1), kept("h-mappo", "drone-20", 320.0, 0.9)]
+    rows = {(r[0], r[1]): r for r in rp.build("drone-claims", records).rows}
+    only = rows[("Only MAGE-X and (H)MAPPO of the RL baselines reach SR ≥ 0.9", "drone-5")]
+    assert only[3:] == ["(H)MAPPO 1.00, MAPPO 0.40, DARL1N 0.60, HTAMP 0.40, MAGE-X 0.95", "yes"]  # htamp: 2 seeds
+    assert rows[("MAGE-X drops at N = 20 (SR < 0.5)", "drone-20")][2:] == ["0.14", "0.10", "yes"]
+    assert rows[("(H)MAPPO needs more Steps than MASP", "drone-5")][2:] == ["185.34 vs 138.35", "180.00 vs 150.00",
+                                                                           "yes"]
+    assert rows[("(H)MAPPO needs more Steps than MASP", "drone-20")][3:] == ["320.00 vs 330.00", "no"]
+    assert rows[("(H)MAPPO needs more Steps than MASP (velocity)", "drone-5")][3:] == ["—", "—"]
+    assert rows[("MASP CR below every RL baseline's", "drone-5")][3:] == ["0.1000 vs (H)MAPPO 0.1000", "no"]  # a tie
+    assert rows[("MASP CR below every RL baseline's", "drone-20")][3:] == ["—", "—"]   # three baselines missing
+    records[3] = kept("mage-x", "drone-5", 200.0, 0.5)
+    rows = {(r[0], r[1]): r for r in rp.build("drone-claims", records).rows}
+    assert rows[("Only MAGE-X and (H)MAPPO of the RL baselines reach SR ≥ 0.9", "drone-5")][4] == "no"
 
 
 def test_reproduce_evaluates_each_distinct_run_once(monkeypatch, capsys):
