@@ -245,7 +245,7 @@ def test_contact_nets_add_two_pair_features_and_are_built_in_the_products_order(
     contact = ContactNets(action="velocity").state_dict()
     assert contact["cae.fusion.embed.0.weight"].shape[1] == product["cae.fusion.embed.0.weight"].shape[1] + 2
     assert sorted(contact) == sorted(product)
-    assert all(torch.equal(v, product[k]) for k, v in contact.items() if k.startswith("gm"))  # built before the executor
+    assert all(torch.equal(v, product[k]) for k, v in contact.items() if k.startswith("gm"))  # built first
     w = make("drone-5", num_envs=2, seed=0)
     obs = w.reset()
     goals, perm = torch.zeros(2, 5, dtype=torch.long), torch.arange(5).expand(2, 5)
@@ -318,8 +318,8 @@ def test_experiment_trainers_change_their_part_without_touching_the_library():
     from experiments.mpe50_joint_draw import PerturbedDrawTrainer, perturbed_joint_sample
     from masp_lite.algos.masp_trainer import MASPTrainer
     from masp_lite.config import NetConfig
-    from masp_lite.nets.decoding import sequential_sample
     from masp_lite.nets.drones import DroneNets
+    from masp_lite.nets.goal_draw import sequential_sample
     obs = {"agent_pos": torch.tensor([[[0.0, 0.0, 1.5], [3.0, 0.0, 1.5]]]), "agent_vel": torch.zeros(1, 2, 3),
            "landmark_pos": torch.zeros(1, 2, 3), "alive": torch.ones(1, 2, dtype=torch.bool),
            "agent_quat": torch.tensor([[[1.0, 0, 0, 0]] * 2]), "agent_angvel": torch.zeros(1, 2, 3),
