@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import torch
 
-from ..algos.assignment import hungarian_goals
+from ..algos.team import hungarian_goals
 from ..nets.decoding import DECODERS, joint_argmax, random_goals
 from ..nets.goal_draw import sequential_sample
 from ..nets.masp import MASPNets
