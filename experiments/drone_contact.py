@@ -19,8 +19,10 @@ input is what is missing: every pair gets two more features,
 and masp-velocity's first stage is trained from scratch with them (drone-5, Hungarian goals,
 executor only, 32 worlds, training seed 0: the shipped recipe's stage 1, 300 iterations).
 ``evaluate`` flies a checkpoint of this script on validation episodes (evaluation seed 12345)
-with the same features. The control is the shipped recipe's stage-1 executor on the same
-episodes: ``python -m masp_lite evaluate --method masp-velocity --scenario drone-5 --checkpoint
+with the same features (as ``evaluate`` measures: the same worlds, seeds and policy, its networks
+built here). Both build :class:`ContactNets`, the product's drone networks in the product's order
+whose executor reads the two more features. The control is the shipped recipe's stage-1 executor on
+the same episodes: ``python -m masp_lite evaluate --method masp-velocity --scenario drone-5 --checkpoint
 runs/vel-d5-s0/weights.pt --seeds 12345 --episodes 64``. The weights are for this question only:
 the features are not stored in them.
 """
@@ -30,36 +32,76 @@ import argparse
 import json
 import sys
 
+import numpy as np
 import torch
+from torch import nn
 
-import masp_lite.nets.drones as drone_nets
 from experiments import print_validation
-from masp_lite.evaluation import evaluate
+from masp_lite.algos.drone_trainer import DroneMASPTrainer
+from masp_lite.config import NetConfig
+from masp_lite.envs import make
+from masp_lite.evaluation import MAX_ENVS, collision_rate, reached_target, rollout, steps, success_rate
+from masp_lite.nets.drones import DRONE_SPEED, PAIR_FEATURES, DroneExecutor, DroneNets
+from masp_lite.nets.fusion import GroupInformationFusion
+from masp_lite.nets.masp import ExecutorCritic, GoalMatcher, GoalMatcherCritic
+from masp_lite.policies.drone_masp import DroneMASPPolicy
 from masp_lite.training import method_config, train
+from masp_lite.weights import read_weights
 
 CONTACT = 0.54   # m: two collision spheres of 0.27 m touch
 RANGE = 1.0      # m beyond contact over which proximity falls from 1 to 0
 STAGE1 = ["goal_matcher=hungarian", "num_envs=32", "eval_every=10", "eval_episodes=16", "checkpoint_every=5"]
-product_pair_features = drone_nets.pair_features
+EVAL_SEED = 12345
 
 
-def contact_pair_features(pos: torch.Tensor, vel: torch.Tensor, sense: float, max_speed: float) -> torch.Tensor:
-    """The product's pair features (B, N, N, 8) and the two contact-scale ones: (B, N, N, 10)."""
-    base = product_pair_features(pos, vel, sense, max_speed)
+def contact_features(pos: torch.Tensor, vel: torch.Tensor, max_speed: float) -> torch.Tensor:
+    """The two contact-scale pair features (B, N, N, 2): proximity and proximity times the closing speed."""
     rel = pos.unsqueeze(1) - pos.unsqueeze(2)                    # [b, k, j] = x_j - x_k
     d = rel.norm(dim=-1, keepdim=True)
     p = (1 - (d - CONTACT) / RANGE).clamp(0, 1)
     dv = vel.unsqueeze(1) - vel.unsqueeze(2)
     closing = -(rel * dv).sum(-1, keepdim=True) / d.clamp(min=1e-6) / max_speed
     self_pair = torch.eye(pos.shape[1], dtype=torch.bool, device=pos.device).unsqueeze(-1)
-    extra = torch.cat([p, p * closing], dim=-1).masked_fill(self_pair, 0.0)
-    return torch.cat([base, extra], dim=-1)
+    return torch.cat([p, p * closing], dim=-1).masked_fill(self_pair, 0.0)
 
 
-def use_contact_features() -> None:
-    """Executors built from now on read 10 pair features; every executor input gets the two new ones."""
-    drone_nets.PAIR_FEATURES = 10          # read when a DroneExecutor is built
-    drone_nets.pair_features = contact_pair_features   # looked up by DroneNets.cae_inputs at every call
+class ContactNets(DroneNets):
+    """The product's drone networks whose executor's pair features (B, N, N, 8) get the two contact-scale
+    ones (B, N, N, 10). Built in :class:`DroneNets`' order, the fusion where the executor builds its own, so
+    a seed draws the weights of the runs in the research log."""
+
+    def __init__(self, config: NetConfig | None = None, **arch):
+        nn.Module.__init__(self)
+        self.config = c = config if config is not None else NetConfig(**arch)
+        self.gm = GoalMatcher(c.width, dims=3)
+        self.gm_critic = GoalMatcherCritic(c.width, dims=3)
+        self.cae = DroneExecutor(c.width, c.gcn_layers, c.action, c.log_std_init,
+                                 fusion=GroupInformationFusion(PAIR_FEATURES + 2, c.width, c.gcn_layers))
+        self.cae_critic = ExecutorCritic(c.width)
+
+    def cae_inputs(self, obs: dict, goals: torch.Tensor, perm: torch.Tensor) -> tuple:
+        pair, *rest = super().cae_inputs(obs, goals, perm)
+        extra = contact_features(obs["agent_pos"], obs["agent_vel"], DRONE_SPEED)
+        return (torch.cat([pair, extra], dim=-1), *rest)
+
+
+class ContactTrainer(DroneMASPTrainer):
+    nets_class = ContactNets
+
+
+def contact_evaluate(checkpoint: str, scenario: str, episodes: int) -> dict:
+    """``evaluate``'s record (``sr``, ``steps``, ``cr`` as mean and std over the episodes) of a checkpoint of
+    this script, flown deterministically on validation episodes (evaluation seed ``EVAL_SEED``)."""
+    rec = read_weights(checkpoint)
+    nets = ContactNets(**rec["arch"])
+    nets.load_state_dict(rec["state_dict"])
+    world = make(scenario, num_envs=min(episodes, MAX_ENVS), seed=EVAL_SEED)
+    log, _ = rollout(world, DroneMASPPolicy.from_nets(world, nets, seed=EVAL_SEED), episodes, EVAL_SEED)
+    stats = {k: {"mean": float(np.mean(x)), "std": float(np.std(x))} for k, x in
+             (("sr", success_rate(log).numpy()), ("steps", steps(log).numpy()), ("cr", collision_rate(log).numpy()))}
+    if not reached_target(log).any():  # no episode solved: no Steps (the paper's backslash)
+        stats["steps"] = {"mean": None, "std": None}
+    return {"method": "masp-velocity", "scenario": scenario, "episodes_per_seed": episodes, **stats}
 
 
 def main(argv=None) -> int:
@@ -75,17 +117,14 @@ def main(argv=None) -> int:
     e.add_argument("--episodes", type=int, default=64)
     args = p.parse_args(argv)
     torch.set_num_threads(1)
-    use_contact_features()
     if args.command == "train":
         method, cfg, overrides = method_config("masp-velocity", STAGE1 + [f"updates={args.updates}"], "drone-5")
         train("drone-5", cfg, args.out, seed=0, resume=args.resume, overrides=overrides, progress=False,
-              method=method, command=" ".join(["python -m experiments.drone_contact", *(sys.argv[1:] if argv is None
-                                                                                        else argv)]))
+              method=method, trainer_type=ContactTrainer,
+              command=" ".join(["python -m experiments.drone_contact", *(sys.argv[1:] if argv is None else argv)]))
         print_validation(args.out)
     else:
-        record = evaluate("masp-velocity", args.scenario, episodes=args.episodes, seeds=[12345],
-                          checkpoint=args.checkpoint)
-        print(json.dumps({k: record[k] for k in ("method", "scenario", "episodes_per_seed", "sr", "steps", "cr")}))
+        print(json.dumps(contact_evaluate(args.checkpoint, args.scenario, args.episodes)))
     return 0
 
 

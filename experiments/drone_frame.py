@@ -12,7 +12,9 @@ evaluates methods on the same validation episodes twice: with the product's sphe
 cylinder of the same radius (``--half-height`` above and below the rotor plane, default 0.03 m: the hub and
 the rotor disks) as each drone's collision shape. Only the crash test changes: spawns, goals, dynamics and
 the policies are the product's. A cylinder pair can report more than one contact point, so the collision
-*rate* of the frame rows over-counts; SR and Steps are exact.
+*rate* of the frame rows over-counts; SR and Steps are exact. Each row is what ``evaluate`` measures
+(the same batch, seeds and policy options), in the product's :class:`~masp_lite.envs.drones.DroneWorld` or
+in :class:`FrameWorld`, the subclass whose model has the flat frames.
 
 The evaluation seed is a validation seed (12345): nothing here is chosen on the reported seeds 0–2.
 """
@@ -20,28 +22,35 @@ from __future__ import annotations
 
 import argparse
 
-import masp_lite.envs.drone_model as drone_model
-from masp_lite.evaluation import evaluate
+from masp_lite.envs import get_scenario
+from masp_lite.envs.drones import DroneWorld
+from masp_lite.evaluation import MAX_ENVS, collision_rate, rollout, steps, success_rate
+from masp_lite.policies import build_policy, get_factory, method_options
 
 
-def flat_frames(half_height: float):
-    """Make drone worlds built from now on use a flat cylinder (radius ``COLLISION_RADIUS``, half-height
-    ``half_height``) as each drone's collision shape instead of the sphere; returns the undo."""
-    true = drone_model.build_xml
-    r = drone_model.COLLISION_RADIUS
-    sphere = f'type="sphere" size="{r}"'
+class FrameWorld(DroneWorld):
+    """The drone world whose drones collide as flat cylinders (radius ``collision_radius``,
+    ``half_height`` above and below the rotor plane) instead of spheres."""
 
-    def frames(num_drones: int) -> str:
-        xml = true(num_drones)
-        if xml.count(sphere) != num_drones:
+    half_height = 0.03
+
+    def model_xml(self) -> str:
+        xml, r = super().model_xml(), self.collision_radius
+        sphere = f'type="sphere" size="{r}"'
+        if xml.count(sphere) != self.num_agents:
             raise RuntimeError(f"drone_frame: expected one hull {sphere!r} per drone in the drone model")
-        return xml.replace(sphere, f'type="cylinder" size="{r} {half_height}"')
+        return xml.replace(sphere, f'type="cylinder" size="{r} {self.half_height}"')
 
-    drone_model.build_xml = frames   # read by build_model when a world is built
 
-    def undo():
-        drone_model.build_xml = true
-    return undo
+def measure(world_type: type[DroneWorld], method: str, scenario: str, episodes: int, seed: int) -> dict[str, float]:
+    """Mean SR, Steps and CR of ``method`` over ``episodes`` validation episodes, as ``evaluate`` runs them
+    (``min(episodes, MAX_ENVS)`` worlds, the world and the policy seeded by ``seed``)."""
+    world = world_type(get_scenario(scenario), num_envs=min(episodes, MAX_ENVS), seed=seed)
+    factory = get_factory(method, "drone")
+    policy = build_policy(factory, method, world, {"seed": seed} if "seed" in method_options(factory)[0] else {})
+    log, _ = rollout(world, policy, episodes, seed)
+    return {"sr": float(success_rate(log).mean()), "steps": float(steps(log).mean()),
+            "cr": float(collision_rate(log).mean())}
 
 
 def main(argv=None) -> int:
@@ -53,15 +62,11 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=12345, help="validation evaluation seed (default 12345)")
     p.add_argument("--half-height", type=float, default=0.03, help="the frame's half-height, metres")
     args = p.parse_args(argv)
-    for shape in ("sphere", "frame"):
-        undo = flat_frames(args.half_height) if shape == "frame" else (lambda: None)
-        try:
-            for m in args.methods:
-                rec = evaluate(m, args.scenario, episodes=args.episodes, seeds=[args.seed])
-                print(f"{shape:6s} {m:10s} SR {rec['sr']['mean']:.3f}  Steps {rec['steps']['mean']:6.1f}  "
-                      f"CR {rec['cr']['mean']:.4f}", flush=True)
-        finally:
-            undo()
+    frames = type("Frames", (FrameWorld,), {"half_height": args.half_height})
+    for shape, world_type in (("sphere", DroneWorld), ("frame", frames)):
+        for m in args.methods:
+            rec = measure(world_type, m, args.scenario, args.episodes, args.seed)
+            print(f"{shape:6s} {m:10s} SR {rec['sr']:.3f}  Steps {rec['steps']:6.1f}  CR {rec['cr']:.4f}", flush=True)
     return 0
 
 

@@ -11,13 +11,14 @@ exactly the contact distance of their collision spheres (2 x 0.27 m). The planne
 margin beyond that distance; MASP's reward only charges the contact. This fine-tunes the
 shipped drone-20 executor as the research log's "attempt 2" (Hungarian goals, executor only,
 collision coefficient 2, learning rate 3e-4, 16 worlds) in a world whose collision spheres
-have radius ``--radius`` (a crash in training at 2 x radius), so that the executor learns to
-keep that distance; the weights are then meant to fly the true world, with its 0.27 m
-spheres. The periodic validation rows printed here are in the training world (inflated
-spheres); evaluate the weights in the true world with::
+have radius ``--radius`` (the scenario override ``collision_radius``: a crash in training at
+2 x radius, the spawns spaced by it too), so that the executor learns to keep that distance;
+the weights are then meant to fly the true world, with its 0.27 m spheres. The periodic
+validation rows printed here are in the training world (inflated spheres). The weights name
+that world, so flying them in the true world says so (``any_scenario``)::
 
     python -m masp_lite evaluate --method masp --scenario drone-20 --checkpoint OUT/weights.pt \
-        --seeds 12345 --episodes 32
+        --seeds 12345 --episodes 32 --set any_scenario=true
 """
 from __future__ import annotations
 
@@ -26,22 +27,10 @@ import sys
 
 import torch
 
-import masp_lite.envs.drone_model as drone_model
-import masp_lite.envs.drones as drones
 from experiments import print_validation
+from masp_lite.envs.drone_model import COLLISION_RADIUS
 from masp_lite.training import method_config, train
 from masp_lite.weights import default_checkpoint
-
-
-def inflate(radius: float):
-    """Make the drone worlds built from now on use collision spheres of ``radius``; returns the undo."""
-    true = drone_model.COLLISION_RADIUS
-    drone_model.COLLISION_RADIUS = drones.COLLISION_RADIUS = radius   # read when a world is built
-
-    def undo():
-        drone_model.COLLISION_RADIUS = drones.COLLISION_RADIUS = true
-    return undo
-
 
 SETTINGS = ["goal_matcher=hungarian", "eval_every=10", "eval_episodes=16", "checkpoint_every=5",
             "collision_coef=2", "lr=3e-4"]
@@ -59,12 +48,10 @@ def main(argv=None) -> int:
     p.add_argument("--method", default="masp", choices=("masp", "masp-velocity"),
                    help="masp-velocity needs --init (its weights are not shipped)")
     args = p.parse_args(argv)
-    if not args.radius >= drone_model.COLLISION_RADIUS:
-        raise SystemExit(f"--radius: expected at least the true {drone_model.COLLISION_RADIUS:.2f} m, "
-                         f"got {args.radius}")
+    if not args.radius >= COLLISION_RADIUS:
+        raise SystemExit(f"--radius: expected at least the true {COLLISION_RADIUS:.2f} m, got {args.radius}")
     torch.set_num_threads(1)
-    inflate(args.radius)
-    settings = SETTINGS + [f"updates={args.updates}", f"num_envs={args.num_envs}"]
+    settings = SETTINGS + [f"updates={args.updates}", f"num_envs={args.num_envs}", f"collision_radius={args.radius}"]
     if args.method != "masp" and not args.init:
         raise SystemExit(f"--method {args.method}: pass --init (weights of that method)")
     method, cfg, overrides = method_config(args.method, settings, args.scenario)

@@ -41,7 +41,7 @@ SETTINGS = ["train_executor=false", "gm_reference=squared", "num_envs=16", "lr=7
 
 def perturbed_joint_sample(logits: torch.Tensor, alive: torch.Tensor, generator: torch.Generator,
                            goal_mask: torch.Tensor | None = None):
-    """Perturb-and-MAP goals ``(goals, logp, rank)`` in :func:`~masp_lite.nets.decoding.sequential_sample`'s form.
+    """Perturb-and-MAP goals ``(goals, logp, rank)`` in :func:`~masp_lite.nets.goal_draw.sequential_sample`'s form.
 
     ``rank`` is all zeros: no agent comes before another, so the update's restricted
     categorical is each agent's own, unrestricted one.

@@ -4,23 +4,24 @@ MASP (Multi-Agent Scalable Graph-based Planner) assigns goals with a graph-based
 Matcher and reaches them with a Coordinated Action Executor built on Group Information
 Fusion, both trained with MAPPO. See ``notebooks/`` for the course.
 
-Reading path — MASP itself, in the order of the paper's method section (11 files, about
-2,220 lines; each reads in one sitting):
+Reading path — MASP itself, in the order of the paper's method section (12 files, about
+2,240 lines; each reads in one sitting):
 
 =====  ==========================  =====  ================================================
 step   file                        lines  what it holds
 =====  ==========================  =====  ================================================
 1      ``envs/particle.py``          308  the task: MPE's world, batched over episodes
 2      ``evaluation/metrics.py``     109  SR, Steps, CR, as the paper defines them
-3      ``algos/assignment.py``       168  the Hungarian assignment (R_GM's reference)
+3      ``algos/assignment.py``       158  the Hungarian assignment (R_GM's reference)
 4      ``nets/encoders.py``          228  Self-Encoder and Cross-Encoder (eqs. 2-4)
 5      ``nets/fusion.py``            230  Group Information Fusion: groups of 3, a GCN each
-6      ``nets/masp.py``              308  Goal Matcher, Coordinated Action Executor, critics
-7      ``nets/decoding.py``          142  matching scores -> distinct goals
-8      ``algos/rewards.py``          118  R_GM (eq. 1) and R_CAE (eq. 5)
-9      ``algos/mappo.py``            198  MAPPO: GAE, clipped surrogate, value normalisation
-10     ``algos/masp_trainer.py``     223  one rollout loop and both levels' PPO updates
-11     ``policies/masp.py``          158  the trained networks acting in a world
+6      ``nets/masp.py``              315  Goal Matcher, Coordinated Action Executor, critics
+7      ``nets/goal_draw.py``          85  matching scores -> distinct goals, in training
+8      ``nets/decoding.py``           84  matching scores -> distinct goals, when acting
+9      ``algos/rewards.py``          118  R_GM (eq. 1) and R_CAE (eq. 5)
+10     ``algos/mappo.py``            206  MAPPO: GAE, clipped surrogate, value normalisation
+11     ``algos/masp_trainer.py``     227  one rollout loop and both levels' PPO updates
+12     ``policies/masp.py``          168  the trained networks acting in a world
 =====  ==========================  =====  ================================================
 
 Beside the path, not inside it: the ablations' and baselines' parts (``nets/variants.py``,

@@ -3,8 +3,8 @@ import pytest
 import torch
 
 from masp_lite.__main__ import main
-from masp_lite.algos.assignment import hungarian_goals
 from masp_lite.algos.masp_trainer import MASPTrainer
+from masp_lite.algos.team import hungarian_goals
 from masp_lite.config import NetConfig
 from masp_lite.envs import make
 from masp_lite.nets.baselines import AttentionSubgraph, NearestMLP, nearest_others

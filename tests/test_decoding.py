@@ -5,14 +5,8 @@ import pytest
 import torch
 
 from masp_lite.algos.assignment import hungarian
-from masp_lite.nets.decoding import (
-    MASKED,
-    conditional_logits,
-    independent_goals,
-    joint_argmax,
-    sequential_sample,
-    taken_before,
-)
+from masp_lite.nets.decoding import independent_goals, joint_argmax
+from masp_lite.nets.goal_draw import MASKED, conditional_logits, sequential_sample, taken_before
 
 
 def _distinct(goals, alive):

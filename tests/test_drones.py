@@ -44,6 +44,21 @@ def test_spawns_in_the_flight_volume_and_apart():
         assert (d >= 2 * COLLISION_RADIUS).all()
 
 
+def test_a_collision_radius_resizes_the_spheres_and_spaces_the_spawns():
+    """``collision_radius`` (a drone scenario override): the crash test's sphere, the spawns' spacing and the
+    world definition records name; particle worlds refuse it."""
+    w = make("drone-20", num_envs=4, seed=1, collision_radius=0.4)
+    hull = mujoco.mj_name2id(w.model, mujoco.mjtObj.mjOBJ_GEOM, "d0_hull")
+    assert w.model.geom_size[hull, 0] == pytest.approx(0.4) and w.scenario.world == {"collision_radius": 0.4}
+    p = w.reset()["agent_pos"].double()
+    assert (torch.cdist(p, p) + torch.eye(20) * 1e9 >= 0.8).all()
+    assert make("drone-5", seed=0).scenario.world == {}  # the model's own sphere: the one drone world
+    for bad, what in (({"scenario": "drone-5", "collision_radius": 0.0}, "collision_radius > 0"),
+                      ({"scenario": "mpe-5", "collision_radius": 0.3}, "only for drone scenarios")):
+        with pytest.raises(ValueError, match=what):
+            make(**bad)
+
+
 def test_hover_command_balances_the_weight():
     # in steady state thrust = (c + 1) / 2 * f_max; four rotors at HOVER lift exactly m g
     assert 4 * (HOVER + 1) / 2 * MAX_THRUST == pytest.approx(HUMMINGBIRD["mass"] * 9.81)

@@ -335,7 +335,7 @@ def test_a_trainer_subclass_changes_one_part_and_nothing_else(tmp_path):
     """``train(trainer_type=...)``: the subclass's goal draw is the one trained on; the same draw gives the
     product's weights; anything but a subclass of the world kind's trainer is refused before a file is written."""
     from masp_lite.algos.masp_trainer import MASPTrainer
-    from masp_lite.nets.decoding import sequential_sample
+    from masp_lite.nets.goal_draw import sequential_sample
     calls = []
 
     class Counted(MASPTrainer):

@@ -206,38 +206,52 @@ def test_crash_rows_describe_the_pair_at_the_step_before():
     assert crash_rows(prev, now, keep=0) == []                     # worlds past keep do not count
 
 
-def test_inflate_builds_worlds_with_larger_spheres_and_undoes():
+def test_a_collision_radius_builds_larger_spheres_and_names_its_world():
+    """drone_margin's training world: the scenario override ``collision_radius`` (what ``--radius`` sets)."""
     import mujoco
 
-    from experiments.drone_margin import inflate
     from masp_lite.envs.drone_model import COLLISION_RADIUS
 
     def hull(world):
         return float(world.model.geom_size[mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_GEOM, "d0_hull"), 0])
-    undo = inflate(0.37)
-    try:
-        assert hull(make("drone-5", num_envs=1, seed=0)) == pytest.approx(0.37)
-    finally:
-        undo()
-    assert hull(make("drone-5", num_envs=1, seed=0)) == pytest.approx(COLLISION_RADIUS)
+    wide = make("drone-5", num_envs=1, seed=0, collision_radius=0.37)
+    assert hull(wide) == pytest.approx(0.37) and wide.scenario.world == {"collision_radius": 0.37}
+    true = make("drone-5", num_envs=1, seed=0)
+    assert hull(true) == pytest.approx(COLLISION_RADIUS) and true.scenario.world == {}
 
 
 @pytest.mark.parametrize("frame, crashed", [(False, True), (True, False)])
 def test_flat_frames_let_drones_pass_where_the_spheres_touch(frame, crashed):
     """Two hovering drones 0.5 m apart across and 0.12 m in height: 0.514 m between centres, inside the spheres'
     contact distance (0.54 m) but clear of two 6 cm-tall frames."""
-    from experiments.drone_frame import flat_frames
+    from experiments.drone_frame import FrameWorld
     from masp_lite.envs.drone_model import HOVER_COMMAND
+    from masp_lite.envs.drones import DroneWorld
 
-    undo = flat_frames(0.03) if frame else (lambda: None)
-    try:
-        w = make("drone-5", num_envs=1, num_agents=2, seed=0)
-    finally:
-        undo()
+    w = (FrameWorld if frame else DroneWorld)("drone-5", num_envs=1, num_agents=2, seed=0)
     pos = torch.tensor([[[0.0, 0.0, 1.5], [0.5, 0.0, 1.62]]], dtype=torch.float64)
     w.reset(options={"agent_pos": pos})
     w.step(torch.full((1, 2, 4), HOVER_COMMAND))
     assert bool((~w.alive).any()) == crashed
+
+
+def test_contact_nets_add_two_pair_features_and_are_built_in_the_products_order():
+    from experiments.drone_contact import ContactNets
+    from masp_lite.nets.drones import DroneNets
+
+    torch.manual_seed(0)
+    product = DroneNets(action="velocity").state_dict()
+    torch.manual_seed(0)
+    contact = ContactNets(action="velocity").state_dict()
+    assert contact["cae.fusion.embed.0.weight"].shape[1] == product["cae.fusion.embed.0.weight"].shape[1] + 2
+    assert sorted(contact) == sorted(product)
+    assert all(torch.equal(v, product[k]) for k, v in contact.items() if k.startswith("gm"))  # built first
+    w = make("drone-5", num_envs=2, seed=0)
+    obs = w.reset()
+    goals, perm = torch.zeros(2, 5, dtype=torch.long), torch.arange(5).expand(2, 5)
+    pair = ContactNets(action="velocity").cae_inputs(obs, goals, perm)[0]
+    assert pair.shape == (2, 5, 5, 10)
+    assert torch.equal(pair[..., :8], DroneNets(action="velocity").cae_inputs(obs, goals, perm)[0])
 
 
 def test_mpe50_goals_drives_the_executor_to_the_reference_goals():
@@ -304,8 +318,8 @@ def test_experiment_trainers_change_their_part_without_touching_the_library():
     from experiments.mpe50_joint_draw import PerturbedDrawTrainer, perturbed_joint_sample
     from masp_lite.algos.masp_trainer import MASPTrainer
     from masp_lite.config import NetConfig
-    from masp_lite.nets.decoding import sequential_sample
     from masp_lite.nets.drones import DroneNets
+    from masp_lite.nets.goal_draw import sequential_sample
     obs = {"agent_pos": torch.tensor([[[0.0, 0.0, 1.5], [3.0, 0.0, 1.5]]]), "agent_vel": torch.zeros(1, 2, 3),
            "landmark_pos": torch.zeros(1, 2, 3), "alive": torch.ones(1, 2, dtype=torch.bool),
            "agent_quat": torch.tensor([[[1.0, 0, 0, 0]] * 2]), "agent_angvel": torch.zeros(1, 2, 3),

@@ -7,8 +7,9 @@ goal assignment of the planning baselines. Here it is scipy's
 goals, one call per world. Nothing about the algorithm is hand-written; this module only
 handles the masks (dropped agents, reached goals), the rectangular cases, and the
 conversion between batched torch tensors and numpy. The assignments of the scripted
-references and planners when a team shrinks (random subsets, keep-until-reached, the
-min-max assignment) live beside it, in :mod:`masp_lite.algos.team`.
+references, planners and learned goal sources when a team shrinks (random subsets,
+keep-until-reached, agents left without a goal sent to their nearest, the min-max assignment)
+live beside it, in :mod:`masp_lite.algos.team`.
 
 Conventions, for every function here:
 
@@ -38,7 +39,7 @@ import torch
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
-__all__ = ["hungarian", "hungarian_goals", "assignment_cost", "distance_matrix", "check_power"]
+__all__ = ["hungarian", "assignment_cost", "distance_matrix", "check_power"]
 
 
 def _as_numpy(x, name: str, ndim: int) -> np.ndarray:
@@ -123,17 +124,6 @@ def hungarian(agent_pos, goal_pos, agent_mask=None, goal_mask=None, power: float
     """
     a, g, am, gm, device = _check(agent_pos, goal_pos, agent_mask, goal_mask)
     return torch.from_numpy(_solve(a, g, am, gm, check_power(power))).to(device)
-
-
-def hungarian_goals(agent_pos, goal_pos, agent_mask=None, goal_mask=None) -> torch.Tensor:
-    """:func:`hungarian`, with every agent it leaves without a goal sent to its nearest one.
-
-    The goals of ``h-mappo`` and of ``masp``'s ``decode="hungarian"`` diagnostic: (B, N)
-    goal indices, none ``-1`` (a shrinking team can have more agents than open goals).
-    """
-    goals = hungarian(agent_pos, goal_pos, agent_mask, goal_mask)
-    nearest = torch.cdist(torch.as_tensor(agent_pos), torch.as_tensor(goal_pos)).argmin(-1).to(goals.device)
-    return torch.where(goals >= 0, goals, nearest)
 
 
 def assignment_cost(agent_pos, goal_pos, assignment, power: float = 1.0) -> torch.Tensor:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import torch
 
 from ..nets.decoding import random_goals
-from .assignment import hungarian_goals
+from .team import hungarian_goals
 
 __all__ = ["scripted_goals"]
 

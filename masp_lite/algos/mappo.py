@@ -176,7 +176,6 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
                 targets=value_norm.normalize(data["returns"]))
     stats = {"policy_loss": 0.0, "value_loss": 0.0, "entropy": 0.0}
     n = 0
-    params = list(actor.parameters()) + list(critic.parameters())
     for _ in range(cfg.ppo_epochs if epochs is None else epochs):
         for mb in RolloutStorage.minibatches(data, cfg.num_minibatches, generator):
             out, values = evaluate(mb)
@@ -204,5 +203,4 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
             stats["value_loss"] += vl.item()
             stats["entropy"] += entropy.item()
             n += 1
-    del params
     return {k: v / max(n, 1) for k, v in stats.items()}

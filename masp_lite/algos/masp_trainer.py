@@ -11,7 +11,7 @@ Per environment step ``t`` of a rollout (all worlds and agents at once, under
 
 1. every ``global_step`` steps the Goal Matcher samples a goal per agent — distinct goals,
    drawn agent by agent in a random order (stored with the picks,
-   :mod:`masp_lite.nets.decoding`); its reward ``R_GM``
+   :mod:`masp_lite.nets.goal_draw`); its reward ``R_GM``
    (eq. 1) is computed at once against the Hungarian assignment;
 2. the executor samples an action per agent from its goal and a fresh random group order,
    and the world steps; its inputs (pair features, the groups, goal and obstacle features,
@@ -43,7 +43,7 @@ import torch
 
 from ..config import TrainConfig
 from ..envs import make
-from ..nets.decoding import conditional_logits, sequential_sample
+from ..nets.goal_draw import conditional_logits, sequential_sample
 from ..nets.masp import MASPNets
 from .mappo import RolloutStorage, ValueNorm, gae, ppo_update, sample
 from .rewards import coverage_reward, executor_reward, goal_matcher_reward

@@ -2,8 +2,9 @@
 
 MASP's trainer needs only :mod:`masp_lite.algos.assignment` (the Hungarian reference of
 R_GM); the scripted references and the planners (:mod:`masp_lite.policies`) also assign
-goals under the paper's varying-team protocols (:data:`TEAM_PROTOCOLS`, :class:`TeamAssignment`)
-and, for ``h-bottleneck``, by the min-max assignment (:func:`bottleneck`). Same conventions
+goals under the paper's varying-team protocols (:data:`TEAM_PROTOCOLS`, :class:`TeamAssignment`),
+send the agents a Hungarian assignment leaves without a goal to their nearest one (:func:`hungarian_goals`,
+the goals of ``h-mappo``) and, for ``h-bottleneck``, assign by the min-max rule (:func:`bottleneck`). Same conventions
 as :mod:`masp_lite.algos.assignment` (masks, rectangular cases, ``-1`` for no goal).
 """
 from __future__ import annotations
@@ -15,7 +16,7 @@ from scipy.spatial.distance import cdist
 
 from .assignment import _as_numpy, _check, _solve, hungarian
 
-__all__ = ["hungarian_random_subset", "bottleneck", "sequential", "TeamAssignment", "TEAM_PROTOCOLS"]
+__all__ = ["hungarian_random_subset", "hungarian_goals", "bottleneck", "sequential", "TeamAssignment", "TEAM_PROTOCOLS"]
 
 
 def hungarian_random_subset(agent_pos, goal_pos, agent_mask=None, goal_mask=None,
@@ -50,6 +51,17 @@ def hungarian_random_subset(agent_pos, goal_pos, agent_mask=None, goal_mask=None
     n_agents = am.sum(1, keepdims=True)
     subset = gm & (rank < n_agents)
     return torch.from_numpy(_solve(a, g, am, subset)).to(device)
+
+
+def hungarian_goals(agent_pos, goal_pos, agent_mask=None, goal_mask=None) -> torch.Tensor:
+    """:func:`~masp_lite.algos.assignment.hungarian`, with every agent it leaves without a goal sent to its nearest one.
+
+    The goals of ``h-mappo`` and of ``masp``'s ``decode="hungarian"`` diagnostic: (B, N)
+    goal indices, none ``-1`` (a shrinking team can have more agents than open goals).
+    """
+    goals = hungarian(agent_pos, goal_pos, agent_mask, goal_mask)
+    nearest = torch.cdist(torch.as_tensor(agent_pos), torch.as_tensor(goal_pos)).argmin(-1).to(goals.device)
+    return torch.where(goals >= 0, goals, nearest)
 
 
 def _bottleneck_one(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

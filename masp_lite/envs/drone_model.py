@@ -94,7 +94,7 @@ def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:
         2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1).reshape(*q.shape[:-1], 3, 3)
 
 
-def _drone(i: int) -> str:
+def _drone(i: int, collision_radius: float) -> str:
     h = HUMMINGBIRD
     ixx, iyy, izz = h["inertia"]
     yaw_ratio = h["moment_constant"] / h["force_constant"]
@@ -107,10 +107,10 @@ def _drone(i: int) -> str:
             f'rgba="{colour}"/>'
             f'<site name="d{i}_rotor{k}" pos="{x:.6f} {y:.6f} 0.02" size="0.01"/>')
     return (
-        f'<body name="drone{i}" pos="{2 * i * COLLISION_RADIUS:.3f} 0 1">'
+        f'<body name="drone{i}" pos="{2 * i * collision_radius:.3f} 0 1">'
         f'<freejoint name="d{i}_joint"/>'
         f'<inertial pos="0 0 0" mass="{h["mass"]}" diaginertia="{ixx} {iyy} {izz}"/>'
-        f'<geom name="d{i}_hull" type="sphere" size="{COLLISION_RADIUS}" rgba="0 0 0 0" group="3"/>'
+        f'<geom name="d{i}_hull" type="sphere" size="{collision_radius}" rgba="0 0 0 0" group="3"/>'
         f'<geom class="visual" type="box" size="0.05 0.05 0.025" rgba="0.25 0.25 0.3 1"/>'
         + "".join(arms) + "".join(rotors) + "</body>"
     ), "".join(
@@ -123,11 +123,13 @@ def _drone(i: int) -> str:
     )
 
 
-def build_xml(num_drones: int) -> str:
-    """MJCF text of ``num_drones`` Hummingbirds over a floor (see the module docstring)."""
+def build_xml(num_drones: int, collision_radius: float = COLLISION_RADIUS) -> str:
+    """MJCF text of ``num_drones`` Hummingbirds over a floor (see the module docstring), each in a
+    collision sphere of ``collision_radius`` (a scenario may set another,
+    :attr:`~masp_lite.envs.scenarios.Scenario.collision_radius`)."""
     if not isinstance(num_drones, (int, np.integer)) or num_drones < 1:
         raise ValueError(f"num_drones: expected a positive int, got {num_drones!r}")
-    parts = [_drone(i) for i in range(int(num_drones))]
+    parts = [_drone(i, collision_radius) for i in range(int(num_drones))]
     return f"""<mujoco model="hummingbirds">
   <option timestep="{PHYSICS_DT}" gravity="0 0 -{GRAVITY}" integrator="implicitfast"/>
   <default>
@@ -144,9 +146,9 @@ def build_xml(num_drones: int) -> str:
 </mujoco>"""
 
 
-def build_model(num_drones: int) -> mujoco.MjModel:
+def build_model(num_drones: int, collision_radius: float = COLLISION_RADIUS) -> mujoco.MjModel:
     """Compile :func:`build_xml` into an ``MjModel``."""
-    return mujoco.MjModel.from_xml_string(build_xml(num_drones))
+    return mujoco.MjModel.from_xml_string(build_xml(num_drones, collision_radius))
 
 
 def save_xml(path: str, num_drones: int = 5) -> str:

@@ -33,8 +33,9 @@ Choices (the paper leaves them open):
   ``reach_distance = ARM_LENGTH + landmark_radius`` = 0.22 m of its centre: the ball touches
   the disc swept by the arms (the drone presets set ``agent_radius`` to the arm length,
   so ``Scenario.reach_distance`` says the same).
-* **Crashes.** A drone crashes when MuJoCo reports a contact of its collision sphere with
-  another drone or the floor during any physics substep of the step, or when it leaves the
+* **Crashes.** A drone crashes when MuJoCo reports a contact of its collision sphere (radius
+  ``COLLISION_RADIUS`` = 0.27 m, or the scenario's ``collision_radius``, which also spaces the
+  spawns) with another drone or the floor during any physics substep of the step, or when it leaves the
   flight volume. ``collisions`` counts the events of the step: drone–drone pairs + floor
   contacts + exits, among drones alive before the step; ``agent_collisions`` the same per
   drone. A crashed drone is no longer ``alive``: it neither acts, collides nor covers
@@ -69,7 +70,7 @@ import numpy as np
 import torch
 
 from .base import BatchedWorld
-from .drone_model import ARM_LENGTH, COLLISION_RADIUS, HOVER_COMMAND, HUMMINGBIRD, MAX_THRUST, SUBSTEPS, build_model
+from .drone_model import ARM_LENGTH, COLLISION_RADIUS, HOVER_COMMAND, HUMMINGBIRD, MAX_THRUST, SUBSTEPS, build_xml
 from .scenarios import Scenario
 
 __all__ = ["DroneWorld", "FLIGHT_HEIGHT", "CEILING", "LANDMARK_HEIGHTS"]
@@ -94,11 +95,12 @@ class DroneWorld(BatchedWorld):
                  dtype: torch.dtype = torch.float32, threads: int = 1, **overrides):
         sc = self._setup(scenario, num_envs, device, dtype, overrides)
         self.reach_distance = ARM_LENGTH + sc.landmark_radius
+        r = self.collision_radius = COLLISION_RADIUS if sc.collision_radius is None else sc.collision_radius
         half = sc.world_size / 2
-        if half < COLLISION_RADIUS + _GAP:
-            raise ValueError(f"world_size: expected at least {2 * (COLLISION_RADIUS + _GAP):g} m for drones")
+        if half < r + _GAP:
+            raise ValueError(f"world_size: expected at least {2 * (r + _GAP):g} m for drones")
         self._rng = np.random.default_rng(seed)
-        self.model = build_model(self.num_agents)
+        self.model = mujoco.MjModel.from_xml_string(self.model_xml())
         B, N = self.num_envs, self.num_agents
         if B == 1:  # one world: one MjData stepped by mj_step (see the module docstring)
             self.batch, self._data = None, mujoco.MjData(self.model)
@@ -108,7 +110,7 @@ class DroneWorld(BatchedWorld):
             self.batch, self._data = mujoco.batch.Batch(self.model, B, nthread=int(threads)), None
             self._qpos, self._qvel, self._ctrl = (self.batch.bind(k) for k in ("qpos", "qvel", "ctrl"))
         self._park = np.zeros((N, 7))
-        self._park[:, 0], self._park[:, 2], self._park[:, 3] = 3 * COLLISION_RADIUS * np.arange(N), _PARK_HEIGHT, 1
+        self._park[:, 0], self._park[:, 2], self._park[:, 3] = 3 * r * np.arange(N), _PARK_HEIGHT, 1
         self.throttle = np.zeros((B, N, 4))
         self._frozen = np.zeros((B, N, 13))
         self.alive = np.ones((B, N), bool)
@@ -137,6 +139,11 @@ class DroneWorld(BatchedWorld):
         self._no_counts = True  # collisions and agent_collisions are all zero
         self.reset()
 
+    def model_xml(self) -> str:
+        """The MJCF this world compiles: :func:`~masp_lite.envs.drone_model.build_xml` with its collision
+        radius. A subclass may change the drones' collision shape here (only the crash test reads it)."""
+        return build_xml(self.num_agents, self.collision_radius)
+
     # ------------------------------------------------------------------ reset
     def _option_bounds(self, name):
         """Positions inside the flight volume (above the floor, below ``CEILING``, over the map):
@@ -159,7 +166,7 @@ class DroneWorld(BatchedWorld):
         given = self._start_state(options, n)
         if n == 0:  # an empty id list or a mask with nothing marked: nothing to start
             return self.observe()
-        r = COLLISION_RADIUS + _GAP / 2
+        r = self.collision_radius + _GAP / 2
         if "agent_pos" in given:
             pos = given["agent_pos"]
         else:
@@ -214,7 +221,7 @@ class DroneWorld(BatchedWorld):
 
     def _sample(self, n, radius, heights) -> np.ndarray:
         """Rejection-sample N points per episode, pairwise at least ``2 * radius`` apart."""
-        N, half = self.num_agents, self.scenario.world_size / 2 - COLLISION_RADIUS - _GAP
+        N, half = self.num_agents, self.scenario.world_size / 2 - self.collision_radius - _GAP
         out = np.zeros((n, N, 3))
 
         def draw(m):

@@ -76,13 +76,19 @@ class Scenario:
     """Where landmarks spawn: ``"central"`` (every ``mpe-*`` preset), the central 0.8× square
     (MAGE-X's navigation scenario: ``0.8 * uniform(-L/2, L/2)`` per axis), or the ``"whole"``
     map (uniform, as agents and obstacles; mpe2's simple_spread)."""
+    collision_radius: float | None = None
+    """Drones only: the radius of each drone's collision sphere, what a crash is tested against
+    (``None``: the drone model's own, arm + rotor = 0.27 m). A larger sphere makes a world that
+    punishes near passes (the research log's training margins); the planners keep their
+    distances from the model's sphere. Particle agents collide at ``agent_radius``."""
 
     @property
     def world(self) -> dict:
         """The world definition every record and weights file stores: update order and
-        landmark spawn (particle worlds; drones have one world, ``{}``)."""
+        landmark spawn (particle worlds); for drones ``{}``, or their ``collision_radius`` when it
+        is set."""
         if self.kind != "particle":
-            return {}
+            return {} if self.collision_radius is None else {"collision_radius": self.collision_radius}
         return {"integration": self.integration, "landmark_spawn": self.landmark_spawn}
 
     @property
@@ -209,6 +215,9 @@ def _validate(sc: Scenario) -> None:
     need(sc.kind == "particle" or sc.landmark_spawn == "whole", "landmark_spawn 'whole' for drone scenarios")
     for r in ("agent_radius", "landmark_radius", "obstacle_radius"):
         need(getattr(sc, r) > 0, f"{r} > 0, got {getattr(sc, r)}")
+    if sc.collision_radius is not None:
+        need(sc.kind == "drone", "collision_radius only for drone scenarios (particle agents collide at agent_radius)")
+        need(0 < sc.collision_radius < math.inf, f"collision_radius > 0, got {sc.collision_radius}")
     if sc.team_after is not None:
         need(1 <= sc.team_after <= sc.num_agents,
              f"1 <= team_after <= num_agents ({sc.num_agents}), got {sc.team_after}")

@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import torch
 
-from ..algos.assignment import hungarian_goals
-from ..nets.decoding import DECODERS, joint_argmax, random_goals, sequential_sample
+from ..algos.team import hungarian_goals
+from ..nets.decoding import DECODERS, joint_argmax, random_goals
+from ..nets.goal_draw import sequential_sample
 from ..nets.masp import MASPNets
 from ..weights import load_weights, method_checkpoint
 from . import learned_methods
