@@ -336,3 +336,9 @@ def test_bench_train_has_a_drone_row(tmp_path):
     assert main(["bench", "train", *args]) == 0
     rows = json.loads(out.read_text())["env_steps_per_s"]["drone-5"]
     assert set(rows) == {"masp", "masp-velocity", "masp (plain autograd)"} and all(v > 0 for v in rows.values())
+    import argparse
+
+    from masp_lite.bench.train import add_arguments
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert {"drone-5", "drone-20"} <= set(parser.parse_args([]).scenarios)  # both drone teams by default
