@@ -338,3 +338,9 @@ def test_bench_train_has_a_drone_row(tmp_path):
     baselines = {"h-mappo", "htamp", "mage-x", "mappo", "darl1n"}
     assert set(rows) == {"masp", "masp-velocity", "masp (plain autograd)", *baselines}
     assert all(v > 0 for v in rows.values())
+    import argparse
+
+    from masp_lite.bench.train import add_arguments
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert {"drone-5", "drone-20"} <= set(parser.parse_args([]).scenarios)  # both drone teams by default

@@ -272,6 +272,22 @@ def test_one_layer_fusion_matches_the_general_path_in_value_and_gradients(agents
         (gif.embed[0].weight, gif.embed[0].bias, gif.gcn[0].weight, gif.gcn[0].bias))
 
 
+def test_one_layer_fusion_reads_the_nodes_a_gather_reads():
+    """The fusion's row numbers (one ``index_select`` per chunk) pick exactly the pair features that the
+    literal gathers ``pair[b, k, groups[b, k, g, m]]`` pick, bit for bit."""
+    from masp_lite.nets import fusion
+    B, N = 4, 6
+    pair = pair_features(torch.randn(B, N, 2), torch.randn(B, N, 2))
+    groups = group_division(random_permutation(B, N, torch.Generator().manual_seed(2)), 3)
+    self_rows, other_rows = fusion._OneLayerFusion._rows(groups)
+    rows = pair.reshape(-1, pair.shape[-1])
+    F, (G, n) = pair.shape[-1], groups.shape[2:]
+    x_self = torch.gather(pair, 2, groups[..., :1, 0].unsqueeze(-1).expand(B, N, 1, F))
+    x_oth = torch.gather(pair, 2, groups[..., 1:].reshape(B, N, -1, 1).expand(B, N, G * (n - 1), F))
+    assert torch.equal(rows[self_rows].view(B, N, 1, F), x_self)
+    assert torch.equal(rows[other_rows].view(B, N, -1, F), x_oth)
+
+
 @pytest.mark.parametrize("executor", ["attention", "radius"])
 @pytest.mark.parametrize("dead", [False, True])
 def test_pool_kernel_matches_autograd_in_value_and_gradients(executor, dead, monkeypatch):

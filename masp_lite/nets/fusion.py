@@ -59,72 +59,97 @@ class _OneLayerFusion(torch.autograd.Function):
 
     Why: at 50 agents a minibatch holds millions of pair rows, and autograd keeps every
     (rows, L) intermediate: the update then runs at memory speed. Here each chunk of
-    ``CHUNK_ROWS`` pair rows stays in the CPU cache, nothing but the inputs is saved, and
-    the backward recomputes a chunk's forward before its gradient (activation
-    checkpointing); sums over the few members of a group are explicit additions (much
-    faster than ``sum`` over a short axis). Measured on one core, 50 agents, a 720-row
-    minibatch (best of 4): forward and backward 2.0 s with autograd -> 0.37 s; the numbers
-    agree with the general path (:func:`gcn_layer`) to float rounding
-    (tested, with ``gradcheck``).
+    ``CHUNK_ROWS`` pair rows stays in the CPU cache, nothing but the inputs (with the row
+    numbers and masks that are made from them once per call) is saved, and the backward
+    recomputes a chunk's forward before its gradient (activation checkpointing); sums over
+    the few members of a group are explicit additions (much faster than ``sum`` over a
+    short axis), and a chunk reads its nodes with one ``index_select`` of row numbers.
+    Measured on one core, 50 agents, a 720-row minibatch (best of 4): forward and backward
+    2.0 s with autograd -> 0.37 s; the numbers agree with the general path
+    (:func:`gcn_layer`) to float rounding (tested, with ``gradcheck``).
     """
 
     @staticmethod
-    def _chunk(pair, groups, others_alive, We_t, be, Wg_t, bg):
-        B, N, G, n = groups.shape
-        F = pair.shape[-1]
-        x_self = torch.gather(pair, 2, groups[..., :1, 0].unsqueeze(-1).expand(B, N, 1, F))
-        x_oth = torch.gather(pair, 2, groups[..., 1:].reshape(B, N, G * (n - 1), 1).expand(B, N, G * (n - 1), F))
+    def _rows(groups: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Row numbers, in ``pair`` viewed as (B * N * N, F) rows, of each agent's own node (B, N) and
+        of the other members of its groups (B, N, G, n - 1): one ``index_select`` then reads a
+        chunk's nodes (a copy, so the same numbers as a ``gather``, at half its cost)."""
+        B, N = groups.shape[:2]
+        agent = torch.arange(B * N, device=groups.device).view(B, N, 1, 1) * N  # row of [b, k, 0]
+        return agent[..., 0, 0] + groups[..., 0, 0], agent + groups[..., 1:]
+
+    @staticmethod
+    def _chunk(pair_rows, self_rows, other_rows, mf, count, We_t, be, Wg_t, bg):
+        B, N, G, n, F = *other_rows.shape[:3], other_rows.shape[3] + 1, pair_rows.shape[1]
+        x_self = pair_rows.index_select(0, self_rows.reshape(-1)).view(B, N, 1, F)
+        x_oth = pair_rows.index_select(0, other_rows.reshape(-1)).view(B, N, G * (n - 1), F)
         h_self = _linear_relu(x_self, We_t, be)                               # (b, N, 1, L)
         h_oth = _linear_relu(x_oth, We_t, be).view(B, N, G, n - 1, We_t.shape[1])  # (b, N, G, n-1, L)
-        mf = None if others_alive is None else others_alive.to(h_oth.dtype).unsqueeze(-1)
         total = h_self.expand(B, N, G, -1).clone() if n == 1 else None
         for i in range(n - 1):
             h_i = h_oth[:, :, :, i] if mf is None else h_oth[:, :, :, i] * mf[:, :, :, i]
             total = h_i + h_self if total is None else total.add_(h_i)
-        count = float(n) if mf is None else mf.sum(3).add_(1.0)
         a = total.div_(count)
         z = _linear_relu(a, Wg_t, bg)                                          # (b, N, G, L)
-        return x_self, x_oth.view(B, N, G, n - 1, F), h_self, h_oth, mf, count, a, z
+        return x_self, x_oth.view(B, N, G, n - 1, F), h_self, h_oth, a, z
+
+    @staticmethod
+    def _masks(others_alive, groups, dtype):
+        """``(mf, count)``, made once per call: the alive other members as (B, N, G, n-1, 1) floats and
+        the members counted in each group's mean (B, N, G, 1); ``(None, n)`` when all are alive."""
+        if others_alive is None:
+            return None, float(groups.shape[-1])
+        mf = others_alive.to(dtype).unsqueeze(-1)
+        return mf, mf.sum(3).add_(1.0)
 
     @staticmethod
     def forward(ctx, pair, groups, others_alive, weight, We, be, Wg, bg):
         B, N, G, n = groups.shape
         step = max(1, CHUNK_ROWS // (N * G * n))
         We_t, Wg_t = We.t().contiguous(), Wg.t().contiguous()
+        pair_rows = pair.reshape(-1, pair.shape[-1])
+        self_rows, other_rows = _OneLayerFusion._rows(groups)
+        mf, count = _OneLayerFusion._masks(others_alive, groups, pair.dtype)
         out = []
         for s in range(0, B, step):
             sl = slice(s, s + step)
-            oa = None if others_alive is None else others_alive[sl]
-            z = _OneLayerFusion._chunk(pair[sl], groups[sl], oa, We_t, be, Wg_t, bg)[-1]
+            z = _OneLayerFusion._chunk(pair_rows, self_rows[sl], other_rows[sl], *_slice(sl, mf, count),
+                                       We_t, be, Wg_t, bg)[-1]
             out.append((z * weight[sl].unsqueeze(-1)).sum(2))
-        ctx.save_for_backward(pair, groups, others_alive, weight, We, be, Wg, bg)
-        ctx.step = step
+        ctx.save_for_backward(pair_rows, self_rows, other_rows, mf, weight, We, be, Wg, bg)
+        ctx.step, ctx.count = step, count
         return torch.cat(out)
 
     @staticmethod
     def backward(ctx, grad):
-        pair, groups, others_alive, weight, We, be, Wg, bg = ctx.saved_tensors
-        F, L, n = pair.shape[-1], We.shape[0], groups.shape[-1]
+        pair_rows, self_rows, other_rows, mf, weight, We, be, Wg, bg = ctx.saved_tensors
+        count = ctx.count
+        F, L, n = pair_rows.shape[-1], We.shape[0], other_rows.shape[-1] + 1
         We_t, Wg_t = We.t().contiguous(), Wg.t().contiguous()
         gWe, gbe, gWg, gbg = (torch.zeros_like(t) for t in (We, be, Wg, bg))
-        for s in range(0, groups.shape[0], ctx.step):
+        for s in range(0, self_rows.shape[0], ctx.step):
             sl = slice(s, s + ctx.step)
-            oa = None if others_alive is None else others_alive[sl]
-            x_self, x_oth, h_self, h_oth, mf, count, a, z = _OneLayerFusion._chunk(pair[sl], groups[sl], oa,
-                                                                                    We_t, be, Wg_t, bg)
+            mf_s, count_s = _slice(sl, mf, count)
+            x_self, x_oth, h_self, h_oth, a, z = _OneLayerFusion._chunk(pair_rows, self_rows[sl], other_rows[sl],
+                                                                         mf_s, count_s, We_t, be, Wg_t, bg)
             gz = relu_grad(grad[sl].unsqueeze(2) * weight[sl].unsqueeze(-1), z, 0).view(-1, L)
             gWg += (a.view(-1, L).t() @ gz).t()
             gbg += gz.sum(0)
-            g_total = (gz @ Wg).view(z.shape).div_(count)                     # d loss / d (sum of members)
+            g_total = (gz @ Wg).view(z.shape).div_(count_s)                   # d loss / d (sum of members)
             g_self = relu_grad(g_total.sum(2, keepdim=True), h_self, 0).view(-1, L)
             gWe += (x_self.reshape(-1, F).t() @ g_self).t()
             gbe += g_self.sum(0)
             for i in range(n - 1):
-                g_i = g_total if mf is None else g_total * mf[:, :, :, i]
+                g_i = g_total if mf_s is None else g_total * mf_s[:, :, :, i]
                 g_i = relu_grad(g_i, h_oth[:, :, :, i], 0).view(-1, L)
                 gWe += (x_oth[:, :, :, i].reshape(-1, F).t() @ g_i).t()
                 gbe += g_i.sum(0)
         return None, None, None, None, gWe, gbe, gWg, gbg
+
+
+def _slice(sl: slice, mf, count):
+    """A chunk's rows of the masks of :meth:`_OneLayerFusion._masks`."""
+    return (None, count) if mf is None else (mf[sl], count[sl])
 
 
 def random_permutation(batch: int, num_agents: int, generator: torch.Generator | None = None,
