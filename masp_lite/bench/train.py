@@ -3,7 +3,7 @@
 One environment step is one step of one world (all its agents), the unit of every training
 budget in the manifests. For each scenario (``mpe-20``, ``mpe-50``, ``drone-5`` and ``drone-20`` by default) and each
 method — on particle worlds MASP and the RL baselines, :data:`METHODS`; on drone worlds MASP with motor
-commands and ``masp-velocity``, :data:`DRONE_METHODS` (MuJoCo then steps the worlds with
+commands, ``masp-velocity`` and the RL baselines, :data:`DRONE_METHODS` (MuJoCo then steps the worlds with
 ``mujoco.batch`` on ``--threads`` threads too) — the trainer is built with the from-scratch recipe
 (:data:`masp_lite.config.FROM_SCRATCH`, ``--worlds`` worlds instead of its 32), one iteration
 (an episode in every world, then PPO on both levels) warms up, and ``--iterations``
@@ -36,7 +36,7 @@ __all__ = ["add_arguments", "run", "throughput", "METHODS", "DRONE_METHODS"]
 METHODS = {m: {**e["nets"], **e.get("train", {})} for m, e in learned_methods("particle").items()
            if m == "masp" or e.get("group") == "baseline"}
 """Measured methods on particle worlds (MASP and the RL baselines) -> the training settings that make each one."""
-DRONE_METHODS = {m: dict(e["nets"]) for m, e in learned_methods("drone").items()}
+DRONE_METHODS = {m: {**e["nets"], **e.get("train", {})} for m, e in learned_methods("drone").items()}
 """Measured methods on drone worlds -> their settings."""
 
 
