@@ -111,7 +111,7 @@ def test_train_without_method_takes_the_one_its_settings_make():
 
 
 def test_coverage_reward_is_simple_spreads_shape():
-    from masp_lite.algos.rewards import coverage_reward
+    from masp_lite.algos.goal_sources import coverage_reward
     agents = torch.tensor([[[0.0, 0.0], [3.0, 0.0]]])
     landmarks = torch.tensor([[[0.0, 0.05], [1.0, 0.0]]])
     alive = torch.tensor([[True, True]])

@@ -28,7 +28,7 @@ leaves the executor, its critic and its value normalisation untouched).
 The ablations and the RL baselines are settings of the same trainer
 (:class:`~masp_lite.config.NetConfig`), their parts beside this path: their goals come from
 :mod:`masp_lite.algos.goal_sources`, their networks from :mod:`masp_lite.nets.variants`, the
-goal-free ones' reward is :func:`~masp_lite.algos.rewards.coverage_reward`; an ``mlp``
+goal-free ones' reward is :func:`~masp_lite.algos.goal_sources.coverage_reward`; an ``mlp``
 variant is built for the scenario's team size. The drone trainer
 (:mod:`masp_lite.algos.drone_trainer`) overrides the action step and R_CAE. A research question
 changes one part the same way, in a subclass passed to :func:`masp_lite.training.train`
@@ -46,7 +46,7 @@ from ..envs import make
 from ..nets.goal_draw import conditional_logits, sequential_sample
 from ..nets.masp import MASPNets
 from .mappo import RolloutStorage, ValueNorm, gae, ppo_update, sample
-from .rewards import coverage_reward, executor_reward, goal_matcher_reward
+from .rewards import executor_reward, goal_matcher_reward
 
 __all__ = ["MASPTrainer", "sample", "OBS_KEYS"]
 
@@ -80,8 +80,8 @@ class MASPTrainer:
                                                                               team_size=self.world.num_agents))
         self.gm_trained = cfg.net.goal_matcher not in ("random", "hungarian", "none")  # a Goal Matcher to train
         if not self.gm_trained:  # an ablation's or a baseline's goals, beside MASP's
-            from .goal_sources import scripted_goals
-            self.goal_source = scripted_goals
+            from .goal_sources import coverage_reward, scripted_goals
+            self.goal_source, self.coverage_reward = scripted_goals, coverage_reward
         torch.manual_seed(self.seed)  # network initialisation
         self.nets = self.nets_class(cfg.net)
         n = self.nets
@@ -157,8 +157,8 @@ class MASPTrainer:
         """R_CAE (eq. 5) of step ``t``, from the observation after it; the goal-free baselines' coverage reward."""
         rc, world_size = self.cfg.reward, self.world.scenario.world_size
         if goals is None:
-            return coverage_reward(obs["agent_pos"], obs["landmark_pos"], info["agent_collisions"], alive, self.reach,
-                                   world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)
+            return self.coverage_reward(obs["agent_pos"], obs["landmark_pos"], info["agent_collisions"], alive,
+                                        self.reach, world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)
         goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(obs["agent_pos"]))
         return executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach, world_size,
                                rc.bonus_coef, rc.distance_coef, rc.collision_coef)

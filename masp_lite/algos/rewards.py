@@ -1,5 +1,5 @@
-"""MASP's rewards: ``R_GM`` (paper eq. 1) for the Goal Matcher, ``R_CAE`` (eq. 5) for the executor;
-and the goal-free baselines' coverage reward (:func:`coverage_reward`).
+"""MASP's rewards: ``R_GM`` (paper eq. 1) for the Goal Matcher, ``R_CAE`` (eq. 5) for the executor
+(the goal-free baselines' reward is :func:`masp_lite.algos.goal_sources.coverage_reward`).
 
 **R_GM** (:func:`goal_matcher_reward`), per agent ``k`` each global step, with ``g_m^k``
 the goal the Goal Matcher picked and ``g_h^k`` the Hungarian goal (scipy's
@@ -40,7 +40,7 @@ import torch
 
 from .assignment import assignment_cost, hungarian
 
-__all__ = ["coverage_reward", "goal_matcher_reward", "executor_reward", "complete_bonus", "repeat_counts"]
+__all__ = ["goal_matcher_reward", "executor_reward", "complete_bonus", "repeat_counts"]
 
 
 def repeat_counts(goals: torch.Tensor, alive: torch.Tensor, num_goals: int) -> torch.Tensor:
@@ -95,24 +95,3 @@ def complete_bonus(dist: torch.Tensor, reach: float, alive: torch.Tensor | None 
     within ``reach``, else 0 (0 for dropped agents when ``alive`` is given)."""
     r_b = (dist < reach).to(dist.dtype)
     return r_b if alive is None else torch.where(alive, r_b, torch.zeros_like(r_b))
-
-
-def coverage_reward(agent_pos, landmark_pos, agent_collisions, alive, reach: float, world_size: float,
-                    alpha: float = 1.0, beta: float = 1.0, gamma: float = 1.0) -> torch.Tensor:
-    """The goal-free baselines' reward (``mappo``, ``darl1n``), (B, N), in MPE simple_spread's style.
-
-    With no goals there is no per-agent target: the team shares simple_spread's coverage
-    terms, and each agent pays for its own contacts. Scaled like R_CAE so that the same
-    coefficients (``RewardConfig``) mean the same::
-
-        R^k = alpha * (fraction of landmarks covered)
-              - beta * mean_l min_a dist(l, a) / (world_size / 2)      (alive agents a)
-              - gamma * (agent k's contacts)
-
-    A landmark is covered when an alive agent is within ``reach`` of it. Dropped agents get 0.
-    """
-    d = torch.cdist(landmark_pos, agent_pos).masked_fill(~alive.unsqueeze(1), float("inf"))   # (B, M, N)
-    nearest = d.min(-1).values.clamp(max=2 * world_size)                                      # no agent: far
-    team = alpha * (nearest < reach).to(agent_pos.dtype).mean(-1) - beta * nearest.mean(-1) / (world_size / 2)
-    r = team.unsqueeze(-1) - gamma * agent_collisions.to(agent_pos.dtype)
-    return torch.where(alive, r, torch.zeros_like(r))

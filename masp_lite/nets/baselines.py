@@ -20,7 +20,7 @@ differs from MASP only where the paper says it does.
 
 The goal-free baselines (``goal_matcher="none"``: ``mappo``, ``darl1n``) have no goal to
 embed: each agent sees every landmark instead, through :class:`AttentionPool` over
-:func:`masp_lite.nets.masp.landmark_features` (MAPPO with "the attention mechanism", as the
+:func:`landmark_features` (MAPPO with "the attention mechanism", as the
 paper applies it), and the other agents through
 
 * :class:`AttentionPool` over all alive others' pair features (``executor="attention"``,
@@ -48,11 +48,27 @@ from torch import nn
 from .encoders import chunked, mlp, relu_grad
 
 __all__ = ["NearestMLP", "AttentionSubgraph", "AttentionPool", "RadiusMean", "nearest_others", "distance_feature",
-           "far"]
+           "far", "landmark_features"]
 
 
 CHUNK_ROWS = 20_000
 """(agent, other) rows :class:`_PoolKernel` processes at a time."""
+
+
+def landmark_features(pos: torch.Tensor, vel: torch.Tensor, landmark_pos: torch.Tensor,
+                      covered: torch.Tensor, max_speed: float) -> torch.Tensor:
+    """(B, N, M, 2D + 3): every landmark seen from every agent, in D = 2 or 3 dimensions.
+
+    ``[unit direction (D), min(dist, 1 m), log(1 + dist), covered, own velocity / max_speed (D)]``,
+    the goal features of MASP's executor (:func:`masp_lite.nets.masp.goal_features`) for each landmark, plus
+    whether it is covered now.
+    """
+    rel = landmark_pos.unsqueeze(1) - pos.unsqueeze(2)                    # (B, N, M, D)
+    d = rel.norm(dim=-1, keepdim=True)
+    B, N, M, D = rel.shape
+    cov = covered.to(pos.dtype).view(B, 1, M, 1).expand(B, N, M, 1)
+    v = (vel / max_speed).unsqueeze(2).expand(B, N, M, D)
+    return torch.cat([rel / d.clamp(min=1e-6), d.clamp(max=1.0), torch.log1p(d), cov, v], dim=-1)
 
 
 def distance_feature(pair: torch.Tensor) -> torch.Tensor:

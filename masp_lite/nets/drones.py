@@ -41,6 +41,7 @@ from torch import nn
 from ..config import NetConfig
 from ..envs.drone_model import DRONE_SPEED, HOVER_COMMAND, quat_to_matrix
 from ..envs.drones import FLIGHT_HEIGHT
+from .baselines import landmark_features
 from .encoders import mlp
 from .fusion import GroupInformationFusion, group_division
 from .masp import (
@@ -51,7 +52,6 @@ from .masp import (
     global_features,
     gm_inputs,
     goal_features,
-    landmark_features,
     pair_features,
 )
 
@@ -160,7 +160,7 @@ class DroneNets(nn.Module):
     def cae_inputs(self, obs: dict, goals: torch.Tensor | None, perm: torch.Tensor) -> tuple:
         """Executor inputs ``(pair, groups, alive, goal_f, state_f)`` for goal indices ``goals`` (B, N);
         ``goals`` None (the goal-free baselines): every landmark instead
-        (:func:`~masp_lite.nets.masp.landmark_features`)."""
+        (:func:`~masp_lite.nets.baselines.landmark_features`)."""
         pos, vel = obs["agent_pos"], obs["agent_vel"]
         if goals is None:
             goal_f = landmark_features(pos, vel, obs["landmark_pos"], obs["covered"], DRONE_SPEED)

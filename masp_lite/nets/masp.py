@@ -43,7 +43,7 @@ from .encoders import CrossEncoder, SelfEncoder, mlp
 from .fusion import GroupInformationFusion, group_division
 
 __all__ = ["GoalMatcher", "GoalMatcherCritic", "CoordinatedActionExecutor", "ExecutorCritic",
-           "pair_features", "goal_features", "landmark_features", "obstacle_features", "global_features",
+           "pair_features", "goal_features", "obstacle_features", "global_features",
            "critic_extra", "gm_inputs", "MASPNets", "MAX_SPEED", "SENSE"]
 
 MAX_SPEED = 2.0
@@ -83,21 +83,6 @@ def goal_features(pos: torch.Tensor, vel: torch.Tensor, goal_pos: torch.Tensor, 
     d = rel.norm(dim=-1, keepdim=True)
     unit = rel / d.clamp(min=1e-6)
     return torch.cat([unit, d.clamp(max=1.0), torch.log1p(d), vel / max_speed], dim=-1)
-
-
-def landmark_features(pos: torch.Tensor, vel: torch.Tensor, landmark_pos: torch.Tensor,
-                      covered: torch.Tensor, max_speed: float = MAX_SPEED) -> torch.Tensor:
-    """(B, N, M, 2D + 3): every landmark seen from every agent, in D = 2 or 3 dimensions.
-
-    ``[unit direction (D), min(dist, 1 m), log(1 + dist), covered, own velocity / max_speed (D)]``,
-    the goal features of MASP's executor (:func:`goal_features`) for each landmark, plus whether it is covered now.
-    """
-    rel = landmark_pos.unsqueeze(1) - pos.unsqueeze(2)                    # (B, N, M, D)
-    d = rel.norm(dim=-1, keepdim=True)
-    B, N, M, D = rel.shape
-    cov = covered.to(pos.dtype).view(B, 1, M, 1).expand(B, N, M, 1)
-    v = (vel / max_speed).unsqueeze(2).expand(B, N, M, D)
-    return torch.cat([rel / d.clamp(min=1e-6), d.clamp(max=1.0), torch.log1p(d), cov, v], dim=-1)
 
 
 def obstacle_features(pos: torch.Tensor, obstacle_pos: torch.Tensor, count: int) -> torch.Tensor:
@@ -297,10 +282,11 @@ class MASPNets(nn.Module):
         """Executor inputs for goal indices ``goals`` (B, N) and random group order ``perm`` (B, N).
 
         ``goals`` None (the goal-free baselines): every landmark instead
-        (:func:`landmark_features`)."""
+        (:func:`masp_lite.nets.baselines.landmark_features`)."""
         pos, vel = obs["agent_pos"], obs["agent_vel"]
         if goals is None:
-            goal_f = landmark_features(pos, vel, obs["landmark_pos"], obs["covered"])
+            from .baselines import landmark_features
+            goal_f = landmark_features(pos, vel, obs["landmark_pos"], obs["covered"], MAX_SPEED)
         else:
             goal_f = goal_features(pos, vel, torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos)))
         return (pair_features(pos, vel), group_division(perm, self.config.group_size), obs["alive"], goal_f,
