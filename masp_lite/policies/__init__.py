@@ -93,11 +93,11 @@ METHODS: dict[str, dict[str, dict]] = {
     "gm-mlp": {"particle": _learned("ablation", "mlp", "graph", ("mpe-20",))},
     "cae-mlp": {"particle": _learned("ablation", "graph", "mlp", ("mpe-20",))},
     # the RL baselines (section "Baselines", masp_lite.nets.baselines)
-    "h-mappo": _baseline("hungarian", "nearest"),
-    "htamp": _baseline("mlp", "mlp"),
-    "mage-x": _baseline("graph", "subgraph", {"global_step": 1000}),  # goals once, at the start (past every horizon)
-    "mappo": _baseline("none", "attention"),
-    "darl1n": _baseline("none", "radius"),
+    "h-mappo": _baseline("hungarian", "nearest", drone_weights=_DRONE_SIZES),
+    "htamp": _baseline("mlp", "mlp", drone_weights=_DRONE_SIZES),
+    "mage-x": _baseline("graph", "subgraph", {"global_step": 1000}, _DRONE_SIZES),  # goals once, at the start
+    "mappo": _baseline("none", "attention", drone_weights=_DRONE_SIZES),
+    "darl1n": _baseline("none", "radius", drone_weights=_DRONE_SIZES),
 }
 
 
