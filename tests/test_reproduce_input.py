@@ -67,7 +67,8 @@ def test_text_output_fits_100_columns_with_one_legend_and_each_note_once(capsys)
     assert max(map(len, lines)) <= 100
     assert out.count("Legend:") == 1 and "\\ no episode reached SR 1" in " ".join(out.split())
     notes = [line for line in lines if line.startswith("mean over training seeds")]
-    assert len(notes) == len(set(notes)) and len(notes) <= 8   # one line per table, not one per column
+    # one line per table and set of seeds (a table whose columns pool different seeds has two), not per column
+    assert len(notes) == len(set(notes)) and len(notes) <= 10
 
 
 def test_a_negative_cut_reads_as_more():
