@@ -259,6 +259,8 @@ class MASPNets(nn.Module):
         variant = c.goal_matcher in ("mlp", "none") or c.executor != "graph"
         if variant:  # an ablation's or baseline's parts, beside MASP's (built in this order: the same initial weights)
             from . import variants
+            from .baselines import landmark_features
+            self.landmark_features = landmark_features  # the goal-free baselines' view of every landmark
         self.gm = variants.goal_matcher(c) if c.goal_matcher == "mlp" else GoalMatcher(c.width)
         self.gm_critic = GoalMatcherCritic(c.width)
         fusion, landmarks = variants.executor_parts(c, PAIR_FEATURES, LANDMARK_FEATURES) if variant else (None, None)
@@ -285,8 +287,7 @@ class MASPNets(nn.Module):
         (:func:`masp_lite.nets.baselines.landmark_features`)."""
         pos, vel = obs["agent_pos"], obs["agent_vel"]
         if goals is None:
-            from .baselines import landmark_features
-            goal_f = landmark_features(pos, vel, obs["landmark_pos"], obs["covered"], MAX_SPEED)
+            goal_f = self.landmark_features(pos, vel, obs["landmark_pos"], obs["covered"], MAX_SPEED)
         else:
             goal_f = goal_features(pos, vel, torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos)))
         return (pair_features(pos, vel), group_division(perm, self.config.group_size), obs["alive"], goal_f,

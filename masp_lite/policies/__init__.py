@@ -58,12 +58,12 @@ def _learned(group: str, goal_matcher: str, executor: str, weights: tuple, kind:
             "nets": nets, "weights": weights}
 
 
-def _baseline(goal_matcher: str, executor: str, train: dict | None = None, drone_weights: tuple = ()) -> dict:
-    """An RL baseline's entries: trained from scratch on each particle preset, and on drone-5 then drone-20
-    (``drone_weights``: the drone presets whose weights are packaged; none: ``checkpoint=`` is needed)."""
+def _baseline(goal_matcher: str, executor: str, train: dict | None = None) -> dict:
+    """An RL baseline's entries: trained from scratch on each particle preset, and on drone-5 then drone-20,
+    with packaged weights for each."""
     extra = {"train": train} if train else {}
     return {"particle": {**_learned("baseline", goal_matcher, executor, _TEAM_SIZES), **extra},
-            "drone": {**_learned("baseline", goal_matcher, executor, drone_weights, "drone"), **extra}}
+            "drone": {**_learned("baseline", goal_matcher, executor, _DRONE_SIZES, "drone"), **extra}}
 
 
 #: The one method table (data): name -> world kind -> ``policy`` (``"module:attribute"`` in this
@@ -93,11 +93,11 @@ METHODS: dict[str, dict[str, dict]] = {
     "gm-mlp": {"particle": _learned("ablation", "mlp", "graph", ("mpe-20",))},
     "cae-mlp": {"particle": _learned("ablation", "graph", "mlp", ("mpe-20",))},
     # the RL baselines (section "Baselines", masp_lite.nets.baselines)
-    "h-mappo": _baseline("hungarian", "nearest", drone_weights=_DRONE_SIZES),
-    "htamp": _baseline("mlp", "mlp", drone_weights=_DRONE_SIZES),
-    "mage-x": _baseline("graph", "subgraph", {"global_step": 1000}, _DRONE_SIZES),  # goals once, at the start
-    "mappo": _baseline("none", "attention", drone_weights=_DRONE_SIZES),
-    "darl1n": _baseline("none", "radius", drone_weights=_DRONE_SIZES),
+    "h-mappo": _baseline("hungarian", "nearest"),
+    "htamp": _baseline("mlp", "mlp"),
+    "mage-x": _baseline("graph", "subgraph", {"global_step": 1000}),  # goals once, at the start (past every horizon)
+    "mappo": _baseline("none", "attention"),
+    "darl1n": _baseline("none", "radius"),
 }
 
 
