@@ -5,7 +5,7 @@ Matcher and reaches them with a Coordinated Action Executor built on Group Infor
 Fusion, both trained with MAPPO. See ``notebooks/`` for the course.
 
 Reading path — MASP itself, in the order of the paper's method section (12 files, about
-2,230 lines; each reads in one sitting):
+2,060 lines; each reads in one sitting):
 
 =====  ==========================  =====  ================================================
 step   file                        lines  what it holds
@@ -13,9 +13,9 @@ step   file                        lines  what it holds
 1      ``envs/particle.py``          308  the task: MPE's world, batched over episodes
 2      ``evaluation/metrics.py``     109  SR, Steps, CR, as the paper defines them
 3      ``algos/assignment.py``       158  the Hungarian assignment (R_GM's reference)
-4      ``nets/encoders.py``          228  Self-Encoder and Cross-Encoder (eqs. 2-4)
-5      ``nets/fusion.py``            255  Group Information Fusion: groups of 3, a GCN each
-6      ``nets/masp.py``              301  Goal Matcher, Coordinated Action Executor, critics
+4      ``nets/encoders.py``          177  Self-Encoder and Cross-Encoder (eqs. 2-4)
+5      ``nets/fusion.py``            143  Group Information Fusion: groups of 3, a GCN each
+6      ``nets/masp.py``              302  Goal Matcher, Coordinated Action Executor, critics
 7      ``nets/goal_draw.py``          85  matching scores -> distinct goals, in training
 8      ``nets/decoding.py``           84  matching scores -> distinct goals, when acting
 9      ``algos/rewards.py``           97  R_GM (eq. 1) and R_CAE (eq. 5)
@@ -25,8 +25,9 @@ step   file                        lines  what it holds
 =====  ==========================  =====  ================================================
 
 Beside the path, not inside it: the ablations' and baselines' parts (``nets/variants.py``,
-``nets/ablations.py``, ``nets/baselines.py``, ``algos/goal_sources.py``), the team-size
-protocols of the scripted methods (``algos/team.py``), the drones (``envs/drones.py``,
+``nets/ablations.py``, ``nets/baselines.py``, ``algos/goal_sources.py``), the chunked CPU
+kernels that compute the encoders' and fusion's numbers faster in training (``nets/kernels.py``), the
+team-size protocols of the scripted methods (``algos/team.py``), the drones (``envs/drones.py``,
 ``nets/drones.py``, ``algos/drone_trainer.py``), the method table (``policies/__init__.py``)
 and the reproduction room (``reproduction/``: the paper's numbers, tables, claims and
 training plan, the only code that knows the repository's ``results/``).

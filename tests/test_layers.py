@@ -120,8 +120,10 @@ PARTICLE_ONLY = ["masp_lite.algos.masp_trainer", "masp_lite.training", "masp_lit
 #: training draw of goals has its own module (``nets/goal_draw.py``: the decoding for acting stays out) and
 #: ``hungarian_goals`` lives with the team-size rules (``algos/team.py``); 2,642 with the fusion kernel's
 #: ``index_select`` reads; 2,607 once the goal-free baselines' landmark features and coverage reward live with
-#: the baselines (``nets/baselines.py``, ``algos/goal_sources.py``).
-TRAINER_LINES = 2_610
+#: the baselines (``nets/baselines.py``, ``algos/goal_sources.py``); 2,445 once the chunked CPU kernels live in
+#: ``nets/kernels.py`` (267 lines), which the encoders and the fusion import at their first chunked forward: a
+#: training run loads them at its first update (2,712 lines then), importing or reading MASP's path does not.
+TRAINER_LINES = 2_500
 
 
 def _top_level_imports(path: Path, name: str) -> set[str]:
@@ -177,6 +179,21 @@ def test_the_particle_trainer_loads_no_mujoco_and_little_code():
     mujoco, modules, lines = out[0] == "True", int(out[1]), int(out[2])
     assert not mujoco
     assert lines <= TRAINER_LINES, f"the particle trainer loads {modules} modules, {lines} lines"
+
+
+def test_the_chunked_kernels_load_at_the_first_chunked_forward():
+    """Importing the trainer leaves ``nets.kernels`` unloaded; the networks' first forward on observations
+    (no gradient into the inputs, as in training) loads it and runs the kernels."""
+    code = ("import sys, torch, masp_lite.algos.masp_trainer\n"
+            "from masp_lite.nets.masp import MASPNets, gm_inputs\n"
+            "from masp_lite.nets.fusion import random_permutation\n"
+            "from masp_lite.envs import make\n"
+            "print('masp_lite.nets.kernels' in sys.modules)\n"
+            "w = make('mpe-5', num_envs=2, seed=0); obs = w.reset(); nets = MASPNets()\n"
+            "nets.cae_logits(nets.cae_inputs(obs, torch.zeros(2, 5, dtype=torch.long), random_permutation(2, 5)))\n"
+            "print('masp_lite.nets.kernels' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "True"]
 
 
 def test_a_random_start_loads_no_start_checks():

@@ -77,8 +77,8 @@ def test_cross_encoder_scores_are_a_distribution_and_follow_goal_order():
 
 def test_cross_encoder_chunked_head_matches_eq4_literally_in_value_and_gradients(monkeypatch):
     """The chunked score head (hand-written backward) against autograd through the concatenation."""
-    from masp_lite.nets import encoders
-    monkeypatch.setattr(encoders, "CHUNK_ROWS", 16)       # several chunks
+    from masp_lite.nets import kernels
+    monkeypatch.setattr(kernels, "SCORE_ROWS", 16)        # several chunks
     torch.manual_seed(5)
     ce = CrossEncoder(6, distance_channels=2).double()
     ya = torch.randn(3, 4, 6, dtype=torch.float64, requires_grad=True)
@@ -244,8 +244,8 @@ def test_policy_is_seeded_and_respects_dead_agents(tmp_path):
 @pytest.mark.parametrize("agents, dead", [(7, False), (7, True), (2, False), (1, False)])
 def test_one_layer_fusion_matches_the_general_path_in_value_and_gradients(agents, dead, monkeypatch):
     """The chunked one-layer fusion (hand-written backward) against autograd through gcn_layer."""
-    from masp_lite.nets import fusion
-    monkeypatch.setattr(fusion, "CHUNK_ROWS", 20)  # several chunks even for these small worlds
+    from masp_lite.nets import kernels
+    monkeypatch.setattr(kernels, "FUSION_ROWS", 20)  # several chunks even for these small worlds
     torch.manual_seed(3)
     gif = GroupInformationFusion(6, 5).double()
     pos, vel = torch.randn(3, agents, 2, dtype=torch.float64), torch.randn(3, agents, 2, dtype=torch.float64)
@@ -268,18 +268,18 @@ def test_one_layer_fusion_matches_the_general_path_in_value_and_gradients(agents
     B, N, G, n = groups.shape
     weight = torch.full((B, N, G), 1.0 / G, dtype=torch.float64)
     assert torch.autograd.gradcheck(
-        lambda *p: fusion._OneLayerFusion.apply(pair, groups, others, weight, *p),
+        lambda *p: kernels.OneLayerFusion.apply(pair, groups, others, weight, *p),
         (gif.embed[0].weight, gif.embed[0].bias, gif.gcn[0].weight, gif.gcn[0].bias))
 
 
 def test_one_layer_fusion_reads_the_nodes_a_gather_reads():
     """The fusion's row numbers (one ``index_select`` per chunk) pick exactly the pair features that the
     literal gathers ``pair[b, k, groups[b, k, g, m]]`` pick, bit for bit."""
-    from masp_lite.nets import fusion
+    from masp_lite.nets import kernels
     B, N = 4, 6
     pair = pair_features(torch.randn(B, N, 2), torch.randn(B, N, 2))
     groups = group_division(random_permutation(B, N, torch.Generator().manual_seed(2)), 3)
-    self_rows, other_rows = fusion._OneLayerFusion._rows(groups)
+    self_rows, other_rows = kernels.OneLayerFusion._rows(groups)
     rows = pair.reshape(-1, pair.shape[-1])
     F, (G, n) = pair.shape[-1], groups.shape[2:]
     x_self = torch.gather(pair, 2, groups[..., :1, 0].unsqueeze(-1).expand(B, N, 1, F))
@@ -292,9 +292,9 @@ def test_one_layer_fusion_reads_the_nodes_a_gather_reads():
 @pytest.mark.parametrize("dead", [False, True])
 def test_pool_kernel_matches_autograd_in_value_and_gradients(executor, dead, monkeypatch):
     """The chunked pooling kernel of mappo/darl1n (hand-written backward) against plain autograd."""
-    from masp_lite.nets import baselines
+    from masp_lite.nets import baselines, kernels
     from masp_lite.nets.encoders import plain_autograd
-    monkeypatch.setattr(baselines, "CHUNK_ROWS", 30)  # several chunks even for these small worlds
+    monkeypatch.setattr(kernels, "POOL_ROWS", 30)  # several chunks even for these small worlds
     torch.manual_seed(4)
     agents = 6
     view = (baselines.AttentionPool(6, 5) if executor == "attention" else baselines.RadiusMean(6, 5)).double()

@@ -34,25 +34,21 @@ Pair features are :func:`masp_lite.nets.masp.pair_features` (distance clipped at
 the order among them is arbitrary but fixed (by index). Every module serves any team size.
 
 :class:`AttentionPool` and :class:`RadiusMean` see every pair: at 50 agents a training
-minibatch holds millions of (agent, other) rows, and autograd would keep several
-(rows, width) intermediates of each. :class:`_PoolKernel` computes both a few worlds at a
-time with a hand-written backward, as the fusion's kernel does
-(:class:`masp_lite.nets.fusion._OneLayerFusion`); :func:`masp_lite.nets.encoders.plain_autograd`
-switches it off, and the two paths agree to float rounding (tested, with ``gradcheck``).
+minibatch holds millions of (agent, other) rows. In training both run as
+:class:`masp_lite.nets.kernels.PoolKernel`, a few worlds at a time with a hand-written
+backward; :func:`masp_lite.nets.encoders.plain_autograd` switches it off, and the two paths
+agree to float rounding (tested, with ``gradcheck``).
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from .encoders import chunked, mlp, relu_grad
+from .encoders import chunked, mlp
+from .kernels import PoolKernel
 
 __all__ = ["NearestMLP", "AttentionSubgraph", "AttentionPool", "RadiusMean", "nearest_others", "distance_feature",
            "far", "landmark_features"]
-
-
-CHUNK_ROWS = 20_000
-"""(agent, other) rows :class:`_PoolKernel` processes at a time."""
 
 
 def landmark_features(pos: torch.Tensor, vel: torch.Tensor, landmark_pos: torch.Tensor,
@@ -109,78 +105,6 @@ def _gather_pairs(pair, idx, ok):
     return torch.where(ok.unsqueeze(-1), rows, far(F, pair.dtype, pair.device))
 
 
-class _PoolKernel(torch.autograd.Function):
-    """``sum_s alpha_s relu(We x_s + be)`` over each agent's rows, a few worlds at a time.
-
-    ``apply(rows (B, N, S, F), select, W, b, w2, b2) -> (B, N, L)`` for rows that need no
-    gradient (observations). Two modes:
-
-    * attention (:class:`AttentionPool`): ``W`` (2L, F) and ``b`` (2L,) stack the score
-      MLP's first layer over the embedding; ``alpha`` is the softmax over the rows ``select``
-      (B, N, S) bool marks (``None``: all) of ``relu(W1 x + b1) . w2 + b2`` (zeros when none is marked);
-    * fixed weights (:class:`RadiusMean`): ``w2`` and ``b2`` are ``None``, ``W`` (L, F) is
-      the embedding and ``select`` (B, N, S) holds ``alpha`` itself.
-
-    Only the inputs are saved; the backward recomputes each chunk's forward before its
-    gradient, so every (rows, L) intermediate stays in the CPU cache.
-    """
-
-    @staticmethod
-    def _chunk(x, select, W_t, b, w2, b2):
-        bs, N, S, F = x.shape
-        h = torch.addmm(b, x.reshape(-1, F), W_t).relu_()                     # (r, 2L) or (r, L)
-        L = w2.shape[1] if w2 is not None else h.shape[1]
-        e = h[:, -L:].reshape(bs * N, S, L) if w2 is not None else h.view(bs * N, S, L)
-        if w2 is None:
-            return h, e, select.reshape(bs * N, S)
-        s = (h[:, :L] @ w2[0]).add_(b2).view(bs * N, S)
-        if select is not None:
-            s = s.masked_fill_(~select.reshape(bs * N, S), float("-inf"))
-        return h, e, torch.softmax(s, -1).nan_to_num_(nan=0.0)
-
-    @staticmethod
-    def forward(ctx, rows, select, W, b, w2, b2):
-        B, N, S, _ = rows.shape
-        step = max(1, CHUNK_ROWS // max(N * S, 1))
-        W_t = W.t().contiguous()
-        out = []
-        for s in range(0, B, step):
-            sl = slice(s, s + step)
-            _, e, alpha = _PoolKernel._chunk(rows[sl], None if select is None else select[sl], W_t, b, w2, b2)
-            out.append(torch.bmm(alpha.unsqueeze(1), e).view(-1, N, e.shape[-1]))
-        ctx.save_for_backward(rows, select, W, b, w2, b2)
-        ctx.step = step
-        return torch.cat(out)
-
-    @staticmethod
-    def backward(ctx, grad):
-        rows, select, W, b, w2, b2 = ctx.saved_tensors
-        B, N, S, F = rows.shape
-        W_t = W.t().contiguous()
-        gW, gb = torch.zeros_like(W), torch.zeros_like(b)
-        gw2 = None if w2 is None else torch.zeros_like(w2)
-        gb2 = None if b2 is None else torch.zeros_like(b2)
-        for s in range(0, B, ctx.step):
-            sl = slice(s, s + ctx.step)
-            x = rows[sl].reshape(-1, F)
-            h, e, alpha = _PoolKernel._chunk(rows[sl], None if select is None else select[sl], W_t, b, w2, b2)
-            L = e.shape[-1]
-            g = grad[sl].reshape(-1, 1, L)                                    # (bN, 1, L)
-            gh = torch.empty_like(h)
-            gh[:, -L:] = relu_grad(alpha.unsqueeze(-1) * g, e, 0).reshape(-1, L)
-            if w2 is not None:
-                g_alpha = torch.bmm(e, g.transpose(1, 2)).squeeze(-1)          # (bN, S)
-                g_s = alpha * (g_alpha - (alpha * g_alpha).sum(-1, keepdim=True))
-                hs = h[:, :L]
-                g_s = g_s.reshape(-1)
-                gw2 += (hs.t() @ g_s).unsqueeze(0)
-                gb2 += g_s.sum()
-                gh[:, :L] = relu_grad(g_s.unsqueeze(-1) * w2[0], hs, 0)
-            gW += gh.t() @ x
-            gb += gh.sum(0)
-        return None, None, gW, gb, gw2, gb2
-
-
 class NearestMLP(nn.Module):
     """``h-mappo``'s executor view: MLP over the ``neighbours`` nearest agents (B, N, width)."""
 
@@ -234,7 +158,7 @@ class AttentionPool(nn.Module):
     def pool(self, rows: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
         if chunked() and not rows.requires_grad:
             first, out, embed = self.score[0], self.score[2], self.embed[0]
-            return _PoolKernel.apply(rows, mask, torch.cat([first.weight, embed.weight]),
+            return PoolKernel.apply(rows, mask, torch.cat([first.weight, embed.weight]),
                                      torch.cat([first.bias, embed.bias]), out.weight, out.bias)
         s = self.score(rows).squeeze(-1)
         if mask is not None:
@@ -265,5 +189,5 @@ class RadiusMean(nn.Module):
         w = w / w.sum(2, keepdim=True).clamp(min=1.0)
         if chunked() and not pair.requires_grad:
             embed = self.embed[0]
-            return _PoolKernel.apply(pair, w, embed.weight, embed.bias, None, None)
+            return PoolKernel.apply(pair, w, embed.weight, embed.bias, None, None)
         return (self.embed(pair) * w.unsqueeze(-1)).sum(2)

@@ -41,15 +41,15 @@ _CHUNKED = [True]
 
 
 def chunked() -> bool:
-    """Whether the chunked kernels (this module's score head, the one-layer fusion) are on."""
+    """Whether the chunked kernels (:mod:`masp_lite.nets.kernels`) are on."""
     return _CHUNKED[0]
 
 
 @contextlib.contextmanager
 def plain_autograd():
     """Within this block the networks use plain torch ops and autograd instead of the chunked
-    kernels (:class:`_ScoreHead`, :class:`~masp_lite.nets.fusion._OneLayerFusion`): the same
-    numbers up to float rounding, what ``bench train`` measures the kernels against."""
+    kernels (:mod:`masp_lite.nets.kernels`): the same numbers up to float rounding, what
+    ``bench train`` measures the kernels against."""
     was, _CHUNKED[0] = _CHUNKED[0], False
     try:
         yield
@@ -134,58 +134,6 @@ class SelfEncoder(nn.Module):
         return y, s
 
 
-CHUNK_ROWS = 10_000
-"""(agent, goal) pairs :class:`_ScoreHead` processes at a time."""
-
-relu_grad = torch.ops.aten.threshold_backward
-"""``relu_grad(grad, relu_output, 0)``: ``grad`` where the ReLU's output is > 0 — the chunked kernels' ReLU
-backward (here, in :mod:`.fusion` and :mod:`.baselines`), faster than multiplying by a mask."""
-
-
-class _ScoreHead(torch.autograd.Function):
-    """``relu(hq_k + hk_j + D_kj w_D) . w2 + b2`` for every (agent, goal) pair, chunked.
-
-    ``apply(hq (B, N, L), hk (B, M, L), dist (B, N, M, C), wd (L, C), w2 (1, L), b2 (1,))
-    -> (B, N, M)``; ``dist`` needs no gradient (an observation). The (B, N, M, L) hidden
-    layer of eq. 4's MLP is never stored: it is computed a few worlds at a time, in cache,
-    and recomputed in the backward. Measured on one core, 50 agents and 50 goals, a
-    240-row minibatch: the Cross-Encoder's forward and backward 0.43 s -> 0.11 s (whole
-    training: ``bench train``); the numbers agree with autograd to float rounding (tested).
-    """
-
-    @staticmethod
-    def _hidden(hq, hk, dist, wd):
-        h = hq.unsqueeze(2) + hk.unsqueeze(1)
-        h.view(-1, h.shape[-1]).addmm_(dist.reshape(-1, dist.shape[-1]), wd.t())
-        return h.relu_()
-
-    @staticmethod
-    def forward(ctx, hq, hk, dist, wd, w2, b2):
-        B, N, M = dist.shape[:3]
-        step = max(1, CHUNK_ROWS // max(N * M, 1))
-        out = [(_ScoreHead._hidden(hq[s:s + step], hk[s:s + step], dist[s:s + step], wd) @ w2[0]) + b2
-               for s in range(0, B, step)]
-        ctx.save_for_backward(hq, hk, dist, wd, w2)
-        ctx.step = step
-        return torch.cat(out)
-
-    @staticmethod
-    def backward(ctx, grad):
-        hq, hk, dist, wd, w2 = ctx.saved_tensors
-        L, C = wd.shape
-        ghq, ghk = torch.empty_like(hq), torch.empty_like(hk)
-        gwd, gw2 = torch.zeros_like(wd), torch.zeros_like(w2)
-        for s in range(0, hq.shape[0], ctx.step):
-            sl = slice(s, s + ctx.step)
-            h = _ScoreHead._hidden(hq[sl], hk[sl], dist[sl], wd)
-            g = grad[sl]
-            gw2 += (h.reshape(-1, L).t() @ g.reshape(-1)).unsqueeze(0)
-            gh = relu_grad(g.unsqueeze(-1) * w2[0], h, 0)
-            ghq[sl], ghk[sl] = gh.sum(2), gh.sum(1)
-            gwd += (dist[sl].reshape(-1, C).t() @ gh.reshape(-1, L)).t()
-        return ghq, ghk, None, gwd, gw2, grad.sum().reshape(1)
-
-
 class CrossEncoder(nn.Module):
     """Cross-Encoder (eq. 4): matching-score logits of every agent against every goal.
 
@@ -216,9 +164,10 @@ class CrossEncoder(nn.Module):
             dist = dist.unsqueeze(-1)
         if dist.requires_grad or not chunked():  # the plain formula
             logits = rest(hq.unsqueeze(2) + hk.unsqueeze(1) + dist @ w[:, 2 * L:].T + first.bias).squeeze(-1)
-        else:
+        else:  # the same numbers, chunked (eq. 4's hidden layer is never stored whole)
+            from .kernels import ScoreHead
             out = rest[1]
-            logits = _ScoreHead.apply(hq + first.bias, hk, dist, w[:, 2 * L:], out.weight, out.bias)
+            logits = ScoreHead.apply(hq + first.bias, hk, dist, w[:, 2 * L:], out.weight, out.bias)
         if goal_mask is not None:
             logits = logits.masked_fill(~goal_mask.unsqueeze(1), float("-inf"))
         return logits
