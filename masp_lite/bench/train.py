@@ -13,8 +13,9 @@ The reference, measured in the same run: MASP with the chunked kernels off
 (:func:`masp_lite.nets.encoders.plain_autograd`: the Group Information Fusion and the
 Cross-Encoder's score head from plain torch ops, differentiated by autograd). The ratio
 "x plain" is what the kernels buy; "x masp" compares each method with MASP. On drone
-worlds MuJoCo's physics is a fixed share of every row (about a third of MASP's time at one
-thread), so the ratios there are smaller than on particle worlds. Other work on
+worlds the world's step is a fixed share of every row (MuJoCo's physics about a tenth of
+MASP's time at one thread, with the observations 12–13 %), and the networks are small, so
+the kernels buy less there than on particle worlds. Other work on
 the machine slows every row alike, so the ratios hold better than the absolute figures;
 the output prints the load average.
 """
