@@ -9,7 +9,8 @@ A record made with a weights file names it and its SHA-256; the file must still 
 
 Re-evaluating the slow planners on mpe-50, or 100 and 200 agents, takes minutes each, so by
 default only the records whose estimated cost (decision and world time x steps) is under ``BUDGET_S`` run here;
-``MASP_LITE_ALL_RECORDS=1`` runs every one of them (the 260 records of the last full pass: 1.6 CPU-hours, 48 minutes split over two cores).
+``MASP_LITE_ALL_RECORDS=1`` runs every one of them (the 260 records of the last full pass: 1.6 CPU-hours,
+48 minutes split over two cores).
 """
 import json
 import os
