@@ -9,7 +9,7 @@ where an iteration goes"), so making each op faster does not reach a 1.5x speed-
 of them does, but changes the recipe and so the trained numbers. This measures, in one process
 and on the same machine load, env steps/s of MASP's motor-level drone training (``bench train``'s
 recipe) with the shipped PPO passes and with fewer: the Goal Matcher's epochs halved, one
-minibatch per epoch instead of two, and both levels' epochs cut. Timing only: nothing is
+minibatch per epoch instead of two (and four), and both levels' epochs cut. Timing only: nothing is
 trained to the end or evaluated, so it says what a recipe change would cost, not what it would
 do to SR.
 """
@@ -26,6 +26,7 @@ VARIANTS = {
     "shipped": {},
     "gm_ppo_epochs=5": {"gm_ppo_epochs": 5},
     "num_minibatches=1": {"num_minibatches": 1},
+    "num_minibatches=4": {"num_minibatches": 4},
     "gm_ppo_epochs=5, ppo_epochs=3": {"gm_ppo_epochs": 5, "ppo_epochs": 3},
 }
 
