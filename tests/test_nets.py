@@ -204,7 +204,10 @@ def test_networks_run_for_any_team_size(scenario, n):
     inputs = nets.cae_inputs(obs, goals, random_permutation(3, N))
     assert nets.cae_logits(inputs).shape == (3, N, 5)
     assert nets.cae_forward(inputs, obs, w.horizon)[1].shape == (3, N)
-    assert nets.gm_value(obs, 1.0, w.horizon).shape == (3, N)
+    value = nets.gm_value(obs, 1.0, w.horizon)
+    assert value.shape == (3, N)
+    both = nets.gm_forward(obs, 1.0, w.horizon)  # training's one pass: the same numbers as the two calls
+    assert torch.equal(both[0], nets.gm_logits(obs, 1.0)) and torch.equal(both[1], value)
 
 
 def test_masp_nets_reject_bad_architecture():

@@ -140,8 +140,8 @@ class RolloutStorage:
         flat = {k: v.reshape(-1, *v.shape[2:]) for k, v in data.items()}
         rows = next(iter(flat.values())).shape[0]
         order = torch.randperm(rows, generator=generator)
-        for idx in order.chunk(min(num_minibatches, rows)):
-            yield {k: v[idx] for k, v in flat.items()}
+        for idx in order.chunk(min(num_minibatches, rows)):  # index_select: the rows of v[idx], faster
+            yield {k: v.index_select(0, idx) for k, v in flat.items()}
 
 
 def sample(logits: torch.Tensor, generator: torch.Generator):

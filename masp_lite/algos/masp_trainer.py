@@ -85,8 +85,10 @@ class MASPTrainer:
         torch.manual_seed(self.seed)  # network initialisation
         self.nets = self.nets_class(cfg.net)
         n = self.nets
-        self.gm_opt = torch.optim.Adam([*n.gm.parameters(), *n.gm_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5)
-        self.cae_opt = torch.optim.Adam([*n.cae.parameters(), *n.cae_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5)
+        self.gm_opt = torch.optim.Adam([*n.gm.parameters(), *n.gm_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5,
+                                       foreach=True)
+        self.cae_opt = torch.optim.Adam([*n.cae.parameters(), *n.cae_critic.parameters()], lr=cfg.ppo.lr, eps=1e-5,
+                                       foreach=True)
         self.gm_norm, self.cae_norm = ValueNorm(), ValueNorm()
         self.generator = torch.Generator().manual_seed(self.seed + 10_007)
         self.iterations = 0
@@ -138,8 +140,8 @@ class MASPTrainer:
         if t % self.cfg.net.global_step:
             return goals
         goal_mask = ~obs["reached"] if self.world.scenario.varying else None  # reached ones count for SR already
-        goals, logp, rank = self.draw_goals(self.nets.gm_logits(obs, self.scale), obs["alive"], self.generator)
-        v = self.nets.gm_value(obs, self.scale, self.horizon)
+        logits, v = self.nets.gm_forward(obs, self.scale, self.horizon)
+        goals, logp, rank = self.draw_goals(logits, obs["alive"], self.generator)
         r = goal_matcher_reward(obs["agent_pos"], obs["landmark_pos"], goals, obs["alive"], goal_mask,
                                 power=2.0 if self.cfg.reward.gm_reference == "squared" else 1.0)
         storage.add(**snap, actions=goals, rank=rank, logp=logp, values=v, rewards=r, mask=obs["alive"].clone())
@@ -175,8 +177,8 @@ class MASPTrainer:
     # ------------------------------------------------------------------ update
     def _gm_eval(self, mb):
         obs = {k: mb[k] for k in self.obs_keys}
-        logits = conditional_logits(self.nets.gm_logits(obs, self.scale), mb["actions"], mb["rank"], obs["alive"])
-        return logits, self.nets.gm_value(obs, self.scale, self.horizon)
+        logits, values = self.nets.gm_forward(obs, self.scale, self.horizon)
+        return conditional_logits(logits, mb["actions"], mb["rank"], obs["alive"]), values
 
     def _cae_eval(self, mb):
         obs = {k: mb[k] for k in self.obs_keys}

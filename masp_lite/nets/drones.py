@@ -157,6 +157,11 @@ class DroneNets(nn.Module):
         a, g, _ = gm_inputs(obs, scale, DRONE_SPEED)
         return self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
 
+    def gm_forward(self, obs: dict, scale: float, horizon: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`gm_logits` and :meth:`gm_value` from one :func:`~masp_lite.nets.masp.gm_inputs`."""
+        a, g, dist = gm_inputs(obs, scale, DRONE_SPEED)
+        return self.gm(a, g, dist, obs["alive"]), self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
+
     def cae_inputs(self, obs: dict, goals: torch.Tensor | None, perm: torch.Tensor) -> tuple:
         """Executor inputs ``(pair, groups, alive, goal_f, state_f)`` for goal indices ``goals`` (B, N);
         ``goals`` None (the goal-free baselines): every landmark instead

@@ -280,6 +280,11 @@ class MASPNets(nn.Module):
         a, g, _ = gm_inputs(obs, scale)
         return self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
 
+    def gm_forward(self, obs: dict, scale: float, horizon: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`gm_logits` and :meth:`gm_value` from one :func:`gm_inputs` (what training calls)."""
+        a, g, dist = gm_inputs(obs, scale)
+        return self.gm(a, g, dist, obs["alive"]), self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
+
     def cae_inputs(self, obs: dict, goals: torch.Tensor | None, perm: torch.Tensor) -> tuple:
         """Executor inputs for goal indices ``goals`` (B, N) and random group order ``perm`` (B, N).
 
