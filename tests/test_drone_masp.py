@@ -34,11 +34,11 @@ def test_untrained_executor_asks_for_hover_and_runs_any_team_size():
         mean, log_std = nets.cae_logits(nets.cae_inputs(obs, goals, torch.arange(n).expand(2, n)))
         assert mean.shape == (2, n, 4) and log_std.shape == (4,)
         assert (mean - HOVER_COMMAND).abs().max() < 0.05
-        logits = nets.gm_logits(obs, world.scenario.world_size / 2)
+        scale = world.scenario.world_size / 2
+        logits = nets.gm_logits(obs, scale)
         assert logits.shape == (2, n, n)
-        both = nets.gm_forward(obs, world.scenario.world_size / 2, world.horizon)
-        assert torch.equal(both[0], logits) and torch.equal(both[1], nets.gm_value(obs, world.scenario.world_size / 2,
-                                                                                   world.horizon))
+        both = nets.gm_forward(obs, scale, world.horizon)  # training's one pass: the same numbers
+        assert torch.equal(both[0], logits) and torch.equal(both[1], nets.gm_value(obs, scale, world.horizon))
     st = drone_state_features(obs)
     assert st.shape == (2, 20, 17)
     assert torch.allclose(st[..., :9], torch.eye(3).flatten().expand(2, 20, 9), atol=1e-6)  # level at reset
