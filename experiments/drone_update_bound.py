@@ -28,7 +28,6 @@ from masp_lite.algos.drone_trainer import DroneMASPTrainer
 from masp_lite.algos.mappo import RolloutStorage
 from masp_lite.bench.train import DRONE_METHODS
 from masp_lite.config import FROM_SCRATCH, TrainConfig
-from masp_lite.nets.goal_draw import conditional_logits
 
 
 def _pass(evaluate, minibatches) -> float:
@@ -65,18 +64,7 @@ def main(argv=None):
     trainer = DroneMASPTrainer(args.scenario, cfg, seed=0)
     gm_data, cae_data, _ = trainer.collect()
     n = trainer.world.num_agents
-    nets, keys = trainer.nets, trainer.obs_keys
-
-    def gm_evaluate(mb):  # what the trainer's Goal Matcher update computes on a minibatch
-        obs = {k: mb[k] for k in keys}
-        logits, values = nets.gm_forward(obs, trainer.scale, trainer.horizon)
-        return conditional_logits(logits, mb["actions"], mb["rank"], obs["alive"]), values
-
-    def cae_evaluate(mb):  # and its executor update
-        inputs = (mb["pair"], mb["groups"], mb["alive"], mb["goal_f"], mb["extra_f"])
-        return nets.cae_forward(inputs, {k: mb[k] for k in keys}, trainer.horizon)
-
-    levels = (("goal matcher", gm_data, gm_evaluate), ("executor", cae_data, cae_evaluate))
+    levels = (("goal matcher", gm_data, trainer.gm_evaluate), ("executor", cae_data, trainer.cae_evaluate))
     for level, data, evaluate in levels:
         data = {k: v for k, v in data.items() if k != "reward_mean"}
         rows = data["mask"].shape[0] * data["mask"].shape[1]
@@ -93,7 +81,7 @@ def main(argv=None):
                           "gflop_per_s": round(flops / seconds / 1e9, 1),
                           "bare_product_gflop_per_s": round(bare_rate(rows // cfg.ppo.num_minibatches * n), 1),
                           "pass_s_by_minibatches": passes}), flush=True)
-        nets.zero_grad()
+        trainer.nets.zero_grad()
 
 
 if __name__ == "__main__":

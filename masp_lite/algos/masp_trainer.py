@@ -175,12 +175,14 @@ class MASPTrainer:
         return data
 
     # ------------------------------------------------------------------ update
-    def _gm_eval(self, mb):
+    def gm_evaluate(self, mb):
+        """A minibatch's Goal Matcher logits (restricted as drawn) and values: what its PPO update recomputes."""
         obs = {k: mb[k] for k in self.obs_keys}
         logits, values = self.nets.gm_forward(obs, self.scale, self.horizon)
         return conditional_logits(logits, mb["actions"], mb["rank"], obs["alive"]), values
 
-    def _cae_eval(self, mb):
+    def cae_evaluate(self, mb):
+        """A minibatch's executor output and values from the stored inputs: what its PPO update recomputes."""
         obs = {k: mb[k] for k in self.obs_keys}
         inputs = (mb["pair"], mb["groups"], mb["alive"], mb["goal_f"], mb["extra_f"])
         return self.nets.cae_forward(inputs, obs, self.horizon)
@@ -195,10 +197,10 @@ class MASPTrainer:
             r_gm, s_gm = float("nan"), dict(nothing)
         else:
             r_gm = float(gm_data.pop("reward_mean")[gm_data["mask"]].mean())
-            s_gm = ppo_update(gm_data, self._gm_eval, n.gm, n.gm_critic, self.gm_opt, cfg.ppo, self.gm_norm,
+            s_gm = ppo_update(gm_data, self.gm_evaluate, n.gm, n.gm_critic, self.gm_opt, cfg.ppo, self.gm_norm,
                               self.generator, epochs=cfg.ppo.gm_ppo_epochs)
         if cfg.run.train_executor:
-            s_cae = ppo_update(cae_data, self._cae_eval, n.cae, n.cae_critic, self.cae_opt, cfg.ppo, self.cae_norm,
+            s_cae = ppo_update(cae_data, self.cae_evaluate, n.cae, n.cae_critic, self.cae_opt, cfg.ppo, self.cae_norm,
                                self.generator, distribution=self.distribution)
         else:  # executor frozen (Goal Matcher fine-tuning): nothing to report
             s_cae = dict(nothing)

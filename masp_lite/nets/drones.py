@@ -47,10 +47,9 @@ from .fusion import GroupInformationFusion, group_division
 from .masp import (
     ExecutorCritic,
     GoalMatcher,
+    GoalMatcherCalls,
     GoalMatcherCritic,
     critic_extra,
-    global_features,
-    gm_inputs,
     goal_features,
     pair_features,
 )
@@ -120,11 +119,12 @@ class DroneExecutor(nn.Module):
         return self.distribution(self.features(pair, groups, alive, goal_f, state_f))
 
 
-class DroneNets(nn.Module):
+class DroneNets(GoalMatcherCalls, nn.Module):
     """Both levels' actors and critics for drones, from a :class:`~masp_lite.config.NetConfig`
     whose ``action`` is ``throttle`` or ``velocity``; the interface of :class:`~masp_lite.nets.masp.MASPNets`."""
 
     sense = DRONE_SENSE  # metres at which the pair features clip (a research subclass may see farther)
+    max_speed = DRONE_SPEED  # what the Goal Matcher's velocities are divided by
 
     def __init__(self, config: NetConfig | None = None, **arch):
         super().__init__()
@@ -148,19 +148,6 @@ class DroneNets(nn.Module):
     @property
     def arch(self) -> dict:
         return dataclasses.asdict(self.config)
-
-    def gm_logits(self, obs: dict, scale: float, goal_mask: torch.Tensor | None = None) -> torch.Tensor:
-        a, g, dist = gm_inputs(obs, scale, DRONE_SPEED)
-        return self.gm(a, g, dist, obs["alive"], goal_mask)
-
-    def gm_value(self, obs: dict, scale: float, horizon: int) -> torch.Tensor:
-        a, g, _ = gm_inputs(obs, scale, DRONE_SPEED)
-        return self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
-
-    def gm_forward(self, obs: dict, scale: float, horizon: int) -> tuple[torch.Tensor, torch.Tensor]:
-        """:meth:`gm_logits` and :meth:`gm_value` from one :func:`~masp_lite.nets.masp.gm_inputs`."""
-        a, g, dist = gm_inputs(obs, scale, DRONE_SPEED)
-        return self.gm(a, g, dist, obs["alive"]), self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
 
     def cae_inputs(self, obs: dict, goals: torch.Tensor | None, perm: torch.Tensor) -> tuple:
         """Executor inputs ``(pair, groups, alive, goal_f, state_f)`` for goal indices ``goals`` (B, N);

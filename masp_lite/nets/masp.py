@@ -44,7 +44,7 @@ from .fusion import GroupInformationFusion, group_division
 
 __all__ = ["GoalMatcher", "GoalMatcherCritic", "CoordinatedActionExecutor", "ExecutorCritic",
            "pair_features", "goal_features", "obstacle_features", "global_features",
-           "critic_extra", "gm_inputs", "MASPNets", "MAX_SPEED", "SENSE"]
+           "critic_extra", "gm_inputs", "GoalMatcherCalls", "MASPNets", "MAX_SPEED", "SENSE"]
 
 MAX_SPEED = 2.0
 """MPE's terminal speed under a constant action (m/s); velocities are divided by it."""
@@ -235,7 +235,27 @@ class ExecutorCritic(nn.Module):
         return self.head(torch.cat([f.detach() for f in features] + [extra], dim=-1)).squeeze(-1)
 
 
-class MASPNets(nn.Module):
+class GoalMatcherCalls:
+    """The Goal Matcher's calls on an observation, shared by :class:`MASPNets` and the drones' ``DroneNets``
+    (which set ``max_speed``): each builds :func:`gm_inputs` once."""
+
+    max_speed = MAX_SPEED
+
+    def gm_logits(self, obs: dict, scale: float, goal_mask: torch.Tensor | None = None) -> torch.Tensor:
+        a, g, dist = gm_inputs(obs, scale, self.max_speed)
+        return self.gm(a, g, dist, obs["alive"], goal_mask)
+
+    def gm_value(self, obs: dict, scale: float, horizon: int) -> torch.Tensor:
+        a, g, _ = gm_inputs(obs, scale, self.max_speed)
+        return self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
+
+    def gm_forward(self, obs: dict, scale: float, horizon: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`gm_logits` and :meth:`gm_value` from one :func:`gm_inputs` (what training calls)."""
+        a, g, dist = gm_inputs(obs, scale, self.max_speed)
+        return self.gm(a, g, dist, obs["alive"]), self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
+
+
+class MASPNets(GoalMatcherCalls, nn.Module):
     """Both levels' actors and critics, built from a :class:`~masp_lite.config.NetConfig`.
 
     ``MASPNets(NetConfig(width=32, ...))`` or ``MASPNets(width=32, ...)``; ``arch`` is the
@@ -271,19 +291,6 @@ class MASPNets(nn.Module):
     def arch(self) -> dict:
         """The architecture as a plain dict (``NetConfig``'s fields)."""
         return dataclasses.asdict(self.config)
-
-    def gm_logits(self, obs: dict, scale: float, goal_mask: torch.Tensor | None = None) -> torch.Tensor:
-        a, g, dist = gm_inputs(obs, scale)
-        return self.gm(a, g, dist, obs["alive"], goal_mask)
-
-    def gm_value(self, obs: dict, scale: float, horizon: int) -> torch.Tensor:
-        a, g, _ = gm_inputs(obs, scale)
-        return self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
-
-    def gm_forward(self, obs: dict, scale: float, horizon: int) -> tuple[torch.Tensor, torch.Tensor]:
-        """:meth:`gm_logits` and :meth:`gm_value` from one :func:`gm_inputs` (what training calls)."""
-        a, g, dist = gm_inputs(obs, scale)
-        return self.gm(a, g, dist, obs["alive"]), self.gm_critic(a, g, obs["alive"], global_features(obs, horizon))
 
     def cae_inputs(self, obs: dict, goals: torch.Tensor | None, perm: torch.Tensor) -> tuple:
         """Executor inputs for goal indices ``goals`` (B, N) and random group order ``perm`` (B, N).
