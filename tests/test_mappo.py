@@ -186,3 +186,26 @@ def test_the_min_max_reference_for_r_gm_is_gone():
         goal_matcher_reward(a, g, torch.tensor([[0, 1]]), alive, cost="bottleneck")
     with pytest.raises(ValueError, match="gm_reference"):
         RewardConfig(gm_reference="bottleneck")
+
+
+def test_a_crash_mid_rollout_ends_the_agents_return():
+    """Agent 1 crashes during step 1 (alive at steps 0-1, gone from step 2): its step 1 bootstraps
+    nothing and no advantage flows back across it; agent 0 flies on. Hand-computed GAE."""
+    from masp_lite.algos.masp_trainer import terminal_not_done
+    g, lam = 0.9, 0.8
+    alive = torch.tensor([[True, True], [True, True], [True, False], [True, False]]).unsqueeze(1)  # (T, B=1, N=2)
+    r = torch.tensor([[1.0, 0.5], [2.0, -3.0], [0.0, 7.0], [1.0, 7.0]]).unsqueeze(1)
+    v = torch.tensor([[0.5, 0.2], [1.0, 0.4], [1.5, 9.0], [2.0, 9.0]]).unsqueeze(1)  # dead steps hold junk
+    adv, ret = gae(r, v, torch.zeros(1, 2), g, lam, not_done=terminal_not_done(alive))
+    d1 = -3.0 - 0.4                                      # the crash step: delta = r - V, nothing after it
+    d0 = 0.5 + g * 0.4 - 0.2
+    torch.testing.assert_close(adv[:2, 0, 1], torch.tensor([d0 + g * lam * d1, d1]))
+    a = torch.zeros(())                                  # agent 0: plain GAE to the end (bootstrap 0)
+    expect = []
+    for t in reversed(range(4)):
+        nxt = v[t + 1, 0, 0] if t < 3 else 0.0
+        a = r[t, 0, 0] + g * nxt - v[t, 0, 0] + g * lam * a
+        expect.insert(0, float(a))
+    torch.testing.assert_close(adv[:, 0, 0], torch.tensor(expect))
+    torch.testing.assert_close(ret, adv + v)
+    assert terminal_not_done(torch.ones(5, 2, 3, dtype=torch.bool)).eq(1).all()   # fixed teams: nothing cut

@@ -21,7 +21,8 @@ Per environment step ``t`` of a rollout (all worlds and agents at once, under
 
 A rollout is one full episode (horizon steps), so both levels bootstrap from 0 at the
 end; the critics see the time left. GAE runs per level on its own time axis (global
-steps for the Goal Matcher), then :func:`~masp_lite.algos.mappo.ppo_update` trains each
+steps for the Goal Matcher) and per agent stops at the agent's end, a crash or leaving the
+team (:func:`terminal_not_done`), then :func:`~masp_lite.algos.mappo.ppo_update` trains each
 level (only the Goal Matcher when ``train_executor`` is off: a fine-tuning stage that
 leaves the executor, its critic and its value normalisation untouched).
 
@@ -48,9 +49,25 @@ from ..nets.masp import MASPNets
 from .mappo import RolloutStorage, ValueNorm, gae, ppo_update, sample
 from .rewards import executor_reward, goal_matcher_reward
 
-__all__ = ["MASPTrainer", "sample", "OBS_KEYS"]
+__all__ = ["MASPTrainer", "sample", "OBS_KEYS", "terminal_not_done"]
 
 OBS_KEYS = ("agent_pos", "agent_vel", "landmark_pos", "obstacle_pos", "alive", "covered", "reached", "t")
+
+
+def terminal_not_done(alive: torch.Tensor) -> torch.Tensor:
+    """``not_done`` (T, B, N) for :func:`~masp_lite.algos.mappo.gae` from ``alive`` (T, B, N), each agent's
+    mask at the start of every stored step: 0 where the agent is gone at the next step.
+
+    An agent ends (``term``) when it crashes (drones) or leaves the team (varying teams); its step
+    into that end bootstraps nothing, ``delta_t = r_t + gamma (1 - term_{t+1}) V_{t+1} - V_t``, and no
+    advantage flows back across it, ``A_t = delta_t + gamma lambda (1 - done_{t+1}) A_{t+1}`` (TorchRL's
+    ``generalized_advantage_estimate`` with ``terminated = done``). Within a rollout an agent's end is
+    always terminal: the only cut by the horizon is the rollout's last step, which bootstraps 0 (the
+    critics see the time left), so its entry here is 1 and unused. The steps after an agent's end are
+    masked out of the losses, the advantage statistics and the value normalisation (``mask``). Fixed
+    teams are alive throughout: all ones, and training is exactly what it was without it.
+    """
+    return torch.cat([alive[1:], torch.ones_like(alive[:1])]).to(torch.float32)
 
 
 class MASPTrainer:
@@ -166,8 +183,10 @@ class MASPTrainer:
                                rc.bonus_coef, rc.distance_coef, rc.collision_coef)
 
     def _advantages(self, data, norm: ValueNorm, gamma: float, update: bool = True):
+        """GAE per agent that stops at the agent's end: :func:`terminal_not_done` of the stored ``mask``."""
         values = norm.denormalize(data["values"])
-        adv, ret = gae(data["rewards"], values, torch.zeros_like(values[0]), gamma, self.cfg.ppo.gae_lambda)
+        adv, ret = gae(data["rewards"], values, torch.zeros_like(values[0]), gamma, self.cfg.ppo.gae_lambda,
+                       not_done=terminal_not_done(data["mask"]))
         data["advantages"], data["returns"] = adv, ret
         if update:  # a frozen level keeps its value normalisation too
             norm.update(ret, data["mask"])
