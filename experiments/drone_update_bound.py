@@ -27,7 +27,8 @@ from torch.utils.flop_counter import FlopCounterMode
 from masp_lite.algos.drone_trainer import DroneMASPTrainer
 from masp_lite.algos.mappo import RolloutStorage
 from masp_lite.bench.train import DRONE_METHODS
-from masp_lite.config import FROM_SCRATCH, TrainConfig
+from masp_lite.config import TrainConfig
+from masp_lite.recipes import FROM_SCRATCH
 
 
 def _pass(evaluate, minibatches) -> float:

@@ -5,7 +5,7 @@ Matcher and reaches them with a Coordinated Action Executor built on Group Infor
 Fusion, both trained with MAPPO. See ``notebooks/`` for the course.
 
 Reading path — MASP itself, in the order of the paper's method section (12 files, about
-2,060 lines; each reads in one sitting):
+2,083 lines; each reads in one sitting):
 
 =====  ==========================  =====  ================================================
 step   file                        lines  what it holds
@@ -20,7 +20,7 @@ step   file                        lines  what it holds
 8      ``nets/decoding.py``           84  matching scores -> distinct goals, when acting
 9      ``algos/rewards.py``           97  R_GM (eq. 1) and R_CAE (eq. 5)
 10     ``algos/mappo.py``            206  MAPPO: GAE, clipped surrogate, value normalisation
-11     ``algos/masp_trainer.py``     227  one rollout loop and both levels' PPO updates
+11     ``algos/masp_trainer.py``     250  one rollout loop and both levels' PPO updates
 12     ``policies/masp.py``          168  the trained networks acting in a world
 =====  ==========================  =====  ================================================
 
@@ -28,8 +28,9 @@ Beside the path, not inside it: the ablations' and baselines' parts (``nets/vari
 ``nets/ablations.py``, ``nets/baselines.py``, ``algos/goal_sources.py``), the chunked CPU
 kernels that compute the encoders' and fusion's numbers faster in training (``nets/kernels.py``), the
 team-size protocols of the scripted methods (``algos/team.py``), the drones (``envs/drones.py``,
-``nets/drones.py``, ``algos/drone_trainer.py``), the method table (``policies/__init__.py``)
-and the reproduction room (``reproduction/``: the paper's numbers, tables, claims and
+``nets/drones.py``, ``algos/drone_trainer.py``), the method table (``policies/__init__.py``),
+how every kept weights file is trained (``recipes.py``: each method's stages as data) and the
+reproduction room (``reproduction/``: the paper's numbers, tables, claims and
 training plan, the only code that knows the repository's ``results/``).
 """
 __version__ = "0.1.0"

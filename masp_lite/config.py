@@ -20,7 +20,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig", "FROM_SCRATCH"]
+__all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig"]
 
 
 GM_REFERENCES = ("distance", "squared")
@@ -233,9 +233,3 @@ class TrainConfig:
     def flat(self) -> dict:
         """``{name: value}`` of every setting (the inverse of :meth:`from_flat`)."""
         return {k: v for part in _PARTS for k, v in dataclasses.asdict(getattr(self, part)).items()}
-
-
-FROM_SCRATCH = {"num_envs": 32, "updates": 150, "eval_every": 25, "eval_episodes": 32, "checkpoint_every": 5,
-                "ppo_epochs": 5, "collision_coef": 2.0}
-"""The one-stage recipe from random networks on ``mpe-20`` (``results/training/faithful/``;
-``--set KEY=VALUE`` for each): what the ablations and ``bench train`` use."""

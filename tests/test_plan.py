@@ -1,4 +1,4 @@
-"""``reproduce --train``: the plan read from the kept histories, run in turn, resumed, and on Ray."""
+"""``reproduce --train``: the plan built from the recipes, run in turn, resumed, and on Ray."""
 import json
 import os
 import signal
@@ -11,6 +11,7 @@ import pytest
 import torch
 
 from masp_lite.config import TrainConfig
+from masp_lite.recipes import RECIPES
 from masp_lite.reproduction import plan
 from masp_lite.reproduction.plan import Run, Stage, describe, load_plan, read_plan, run_plan, save_plan
 from masp_lite.weights import sha256
@@ -18,26 +19,31 @@ from masp_lite.weights import sha256
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_every_kept_history_is_planned_or_left_out_with_a_reason():
+def test_the_plan_is_the_recipes_and_every_kept_history_is_one_of_its_runs():
     runs, skipped = read_plan(ROOT)
-    names = {r.name for r in runs} | {n for n, _ in skipped}
+    names = {r.name for r in runs}
     kept = {str(p.relative_to(ROOT / "results/training"))[: -len(".manifest.json")]
             for p in (ROOT / "results/training").rglob("*.manifest.json")}
-    assert names == kept
-    assert all("removed from the product" in why or "wrote" in why for _, why in skipped)
+    assert {n for n, _ in skipped} == kept - names
+    assert all("no recipe makes it" in why for _, why in skipped)
+    expected = {f"{s.keep}-seed{k}" for r in RECIPES.values() for s in r.stages if s.keep for k in (0, 1, 2)}
+    assert names == expected
     by_name = {r.name: r for r in runs}
     faithful = by_name["faithful/mpe-20-seed0"]
     assert len(faithful.stages) == 1 and faithful.stages[0].config["updates"] == 150
+    assert faithful.wall_clock_s is not None  # its kept history is the recipe's: timed
     assert "results/faithful/masp-seed0_mpe-50.json" in faithful.records  # zero-shot records follow the weights
     drone = by_name["drone-20-seed0"]
-    assert drone.shipped and [s.init for s in drone.stages] == [None, 0, 0, 2]
+    assert drone.shipped and [s.init for s in drone.stages] == [None, 0, 1]
     assert {"results/omnidrones/masp_drone-20.json", "results/omnidrones-varying/masp_drone-20to10.json"} \
         == set(drone.records)
     # drone-20 starts from drone-5's first stage: one task, the shared stage trained once
     tasks = plan._tasks([by_name["drone-5-seed0"], drone, faithful])
     assert sorted(len(t) for t in tasks) == [1, 2]
+    # the faithful recipe and MASP's budget run on mpe-20 are the same stage: trained once
+    assert plan._key(faithful, 0) == plan._key(by_name["masp-budget/mpe-20-seed0"], 0)
     text = describe(runs, skipped, workers=2)
-    assert "drone-20-seed0" in text and "left out: mpe-20-seed0" in text and "h of training in turn" in text
+    assert "drone-20-seed0" in text and "h of training in turn" in text
 
 
 def _tiny_run(seed: int, records=()) -> Run:

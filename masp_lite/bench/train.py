@@ -5,7 +5,7 @@ budget in the manifests. For each scenario (``mpe-20``, ``mpe-50``, ``drone-5`` 
 method — on particle worlds MASP and the RL baselines, :data:`METHODS`; on drone worlds MASP with motor
 commands, ``masp-velocity`` and the RL baselines, :data:`DRONE_METHODS` (MuJoCo then steps the worlds with
 ``mujoco.batch`` on ``--threads`` threads too) — the trainer is built with the from-scratch recipe
-(:data:`masp_lite.config.FROM_SCRATCH`, ``--worlds`` worlds instead of its 32), one iteration
+(:data:`masp_lite.recipes.FROM_SCRATCH`, ``--worlds`` worlds), one iteration
 (an episode in every world, then PPO on both levels) warms up, and ``--iterations``
 iterations are timed with ``time.perf_counter``, with ``--threads`` torch threads.
 
@@ -26,10 +26,11 @@ import time
 
 import torch
 
-from ..config import FROM_SCRATCH, TrainConfig
+from ..config import TrainConfig
 from ..envs import get_scenario
 from ..nets.encoders import plain_autograd
 from ..policies import learned_methods
+from ..recipes import FROM_SCRATCH
 from . import load_average, write_json
 
 __all__ = ["add_arguments", "run", "throughput", "METHODS", "DRONE_METHODS"]

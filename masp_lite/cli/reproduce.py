@@ -9,8 +9,8 @@ minutes for "mpe" on one core, most of it the planners on mpe-50) — or ``--qui
 evaluation that several tables read runs once.
 
 ``--train`` retrains every kept training run from random networks (:mod:`masp_lite.reproduction.plan`:
-the plan is read from the kept histories; ``--dry-run`` prints it with each run's env
-steps and wall-clock here), ships the weights and re-makes the records made from them in
+the plan is built from the recipes, :mod:`masp_lite.recipes`; ``--dry-run`` prints it with each
+run's env steps and, from its kept history, wall-clock here), ships the weights and re-makes the records made from them in
 place, then prints the tables. Run it again after a stop: finished stages are skipped, a
 stopped one resumes from its last checkpoint. With Ray installed the runs go out as Ray
 tasks (a local Ray on this machine's cores, or ``--address`` of a cluster); ``--in-turn``
@@ -36,12 +36,6 @@ EXAMPLES = [
     "reproduce --train --only mappo/ --in-turn   # retrain the MAPPO runs, one after the other",
 ]
 
-LEFT_AS_SHIPPED = ("The shipped MASP (mpe-5, mpe-20, and mpe-50 fine-tuned from mpe-20) was trained with a "
-                   "curriculum whose settings have since left the product, so --train keeps it as shipped; "
-                   "MASP from random networks with today's settings is retrained as faithful/ (the ablations' "
-                   "base) and masp-budget/ (the RL baselines' budget).")
-
-
 def add_arguments(parser) -> None:
     parser.add_argument("--table", choices=list(TABLES), action="append", default=None,
                         help="a table to print (repeatable; default: every table)")
@@ -59,7 +53,7 @@ def add_arguments(parser) -> None:
     train.add_argument("--only", action="append", default=None, metavar="TEXT",
                        help="keep the runs whose name contains TEXT (repeatable), e.g. mappo/ or seed0")
     train.add_argument("--plan", default=None, help="a plan file (JSON, as masp_lite.reproduction.plan.save_plan "
-                       "writes) instead of the kept histories")
+                       "writes) instead of the recipes' plan")
     train.add_argument("--root", default=None, help="the checkout whose runs/, results/ and weights the plan "
                        f"writes (default {REPO_ROOT})")
     train.add_argument("--in-turn", action="store_true", help="run the runs one after the other, without Ray")
@@ -78,8 +72,6 @@ def _train(args) -> int:
         if not runs:
             raise ValueError(f"--only {args.only}: no run of the plan matches")
     print(describe(runs, skipped, workers=1 if args.in_turn else os.cpu_count() or 1))
-    if not args.plan:
-        print(LEFT_AS_SHIPPED)
     if args.dry_run:
         return 0
     try:

@@ -1,4 +1,11 @@
-"""``python -m masp_lite train --method masp --scenario mpe-20 [--out DIR] [--resume] [--seed S] [--set k=v]``.
+"""``python -m masp_lite train --method masp --scenario mpe-20 [--out DIR] [--resume] [--seed S] [--set k=v]``,
+or ``python -m masp_lite train --recipe masp [--stage mpe-20] [--seed S] [--out DIR]``.
+
+``--recipe NAME`` trains a recipe of :mod:`masp_lite.recipes` (how every kept weights file is
+made): every stage in turn in ``--out/STAGE/`` (default ``runs/recipe-NAME-seedS``), skipping
+finished stages and resuming a stopped one, so the same command continues a killed recipe;
+``--stage`` trains one stage, from the weights of the stage it starts from in ``--out`` (or
+``--init``). Only the evaluation and checkpoint settings may be ``--set`` then.
 
 Trains MASP, an ablation or an RL baseline (``--method``, settings from
 :func:`masp_lite.training.method_config`) with :func:`masp_lite.training.train` (run folder,
@@ -21,6 +28,7 @@ import sys
 
 import torch
 
+from ..recipes import get_recipe, recipe_names, run_recipe
 from ..training import checkpoint_iterations, method_config, train
 
 __all__ = ["add_arguments", "run", "resume_command", "EXAMPLES"]
@@ -29,6 +37,7 @@ EXAMPLES = [
     "train --method masp --scenario mpe-20 --out runs/mpe-20 --seed 0 --set lr=2e-4",
     "train --method masp --scenario mpe-20 --out runs/mpe-20 --resume   # continue it after Ctrl-C",
     "train --method h-mappo --scenario mpe-5 --seed 0   # an RL baseline, same trainer",
+    "train --recipe masp --seed 0   # the shipped MASP from random networks, every stage in turn",
 ]
 
 
@@ -36,7 +45,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--method", default=None, help="learned method to train: masp, an ablation (masp-rg, gm-mlp, "
                         "cae-mlp) or a baseline (h-mappo, htamp, mage-x, mappo, darl1n); default: the one the "
                         "--set values make, masp without any")
-    parser.add_argument("--scenario", required=True, help="particle scenario, e.g. mpe-20")
+    parser.add_argument("--scenario", default=None, help="scenario, e.g. mpe-20 (not with --recipe)")
+    parser.add_argument("--recipe", default=None,
+                        help=f"train a recipe (masp_lite.recipes): {', '.join(recipe_names())}")
+    parser.add_argument("--stage", default=None, help="with --recipe: only this stage (e.g. mpe-20)")
     parser.add_argument("--out", default=None, help="run folder (default runs/METHOD-SCENARIO-seedS)")
     parser.add_argument("--resume", action="store_true", help="continue the run saved in --out")
     parser.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
@@ -75,9 +87,39 @@ def _interrupted(args, out: str, cfg) -> str:
             f"{os.path.join(out, 'state.pt')}. Resume the run with:\n  {resume_command(args, out)}")
 
 
+def _run_recipe(args) -> int:
+    """``train --recipe``: the recipe's stages (or one) for ``--seed``; one clear error for a bad combination."""
+    given = [f"--{k}" for k in ("scenario", "method") if getattr(args, k) is not None] + \
+        (["--resume"] if args.resume else [])
+    if given:
+        raise ValueError(f"train --recipe: {', '.join(given)} come from the recipe (a stopped recipe resumes by "
+                         "itself); leave them out")
+    recipe = get_recipe(args.recipe)
+    if args.stage is not None:
+        recipe.stage(args.stage)  # an unknown stage: one clear error before anything is written
+    out = args.out or f"runs/recipe-{recipe.name}-seed{args.seed}"
+    try:
+        m = run_recipe(recipe, args.seed, out, stage=args.stage, init=args.init, sets=args.sets,
+                       progress=not args.quiet, say=lambda text: print(text, file=sys.stderr))
+    except KeyboardInterrupt:
+        print(f"\ninterrupted; run the same command again to resume recipe {recipe.name} in {out}", file=sys.stderr)
+        return 130
+    ev = m["final_eval"]
+    print(f"recipe {recipe.name}, last stage on {m['scenario']}: SR {ev['sr']:.3f}  Steps {ev['steps']:.2f}  "
+          f"CR {ev['cr']:.3f} -> {out}")
+    return 0
+
+
 def run(args) -> int:
     if args.threads < 1:
         raise ValueError(f"--threads: expected a positive int, got {args.threads}")
+    if args.recipe is not None:
+        torch.set_num_threads(args.threads)
+        return _run_recipe(args)
+    if args.stage is not None:
+        raise ValueError("train --stage: expected --recipe NAME as well (a stage belongs to a recipe)")
+    if args.scenario is None:
+        raise ValueError("train: expected --scenario SCENARIO (or --recipe NAME)")
     args.method, cfg, overrides = method_config(args.method, args.sets, args.scenario)
     torch.set_num_threads(args.threads)
     out = args.out or f"runs/{args.method}-{args.scenario}-seed{args.seed}"

@@ -1,20 +1,19 @@
-"""The plan of ``reproduce --train``: every kept training run, retrained from random networks.
+"""The plan of ``reproduce --train``: every kept weights file, retrained from its recipe.
 
-Nothing here is a second copy of the recipes: the plan is read from the kept histories
-(``results/training/**/PRESET-seedK.manifest.json``, written by :func:`masp_lite.reproduction.shipping.ship_run`).
-Each history lists its stages with the exact configuration, seed, scenario overrides, env
-steps and wall-clock on the machine that trained it; a stage that fine-tunes names the run
-folder it started from (``--init runs/X/weights.pt``), which is the ``--out`` of an earlier
-stage. A :class:`Run` is one history: its :class:`Stage` s (each with the index of the
-stage it starts from) and the evaluation records made from its weights (every record in
-``results/`` whose checkpoint is the run's weights file, or, for shipped weights, the
-records of the presets they serve). A history that cannot be replayed — a stage setting
-that has left the product, or a start from a file no stage of the history writes — is left
-out with the reason (:func:`read_plan`'s second list); its weights and records stay as they are.
+The plan is built from the recipes (:mod:`masp_lite.recipes`): for every recipe, training seed
+0, 1 and 2, and every stage whose weights are kept (``Stage.keep``), one :class:`Run` — that
+stage and the ones it starts from. The kept histories (``results/training/**/NAME-seedK.manifest.json``,
+written by :func:`masp_lite.reproduction.shipping.ship_run`) are the record of what ran: a run
+whose history matches its recipe stage by stage (scenario, overrides, every setting) shows the
+environment steps and wall-clock measured when it was trained; one that does not match (or has
+no history yet) is planned all the same, its wall-clock unknown. The records a run re-makes are
+every record in ``results/`` whose checkpoint is the run's weights file, or, for shipped weights,
+the records of the presets they serve. A kept history that no recipe makes is left out with the
+reason (:func:`read_plan`'s second list).
 
 :func:`run_plan` trains each stage in ``runs/reproduce/stages/`` under a name that hashes
-the stage and everything it starts from, so two histories that share their first stages
-(drone-20 starts from drone-5's) train them once. A stage folder is a
+the stage and everything it starts from, so two runs that share their first stages
+(drone-20 starts from drone-5's, mpe-5 from mpe-20's) train them once. A stage folder is a
 :func:`masp_lite.training.train` run folder: a killed plan resumes every stage from its
 last checkpoint and skips finished ones. A finished run's weights and history are shipped
 where the single-machine commands keep them (``results/training/...`` or
@@ -33,7 +32,6 @@ import contextlib
 import hashlib
 import json
 import os
-import shlex
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -42,7 +40,8 @@ import torch
 from ..config import TrainConfig
 from ..envs import get_scenario
 from ..evaluation import evaluate
-from ..training import method_config, train
+from ..recipes import RECIPES, Recipe, stage_config
+from ..training import train
 from ..weights import atomic_write_bytes, base_scenario, sha256, trained_preset
 from .reproduce import load_records
 from .shipping import ship_run
@@ -69,8 +68,8 @@ class Stage:
     """Index (in the run) of the stage whose weights this one starts from; None: random networks."""
     threads: int
     env_steps: int
-    wall_clock_s: float
-    """As measured when the kept run was trained (its manifest)."""
+    wall_clock_s: float | None
+    """As measured when the kept run was trained (its manifest); ``None`` when no kept run matches the recipe."""
 
 
 @dataclass(frozen=True)
@@ -91,45 +90,46 @@ class Run:
         return sum(s.env_steps for s in self.stages)
 
     @property
-    def wall_clock_s(self) -> float:
-        return sum(s.wall_clock_s for s in self.stages)
+    def wall_clock_s(self) -> float | None:
+        """Summed over the stages; ``None`` when a stage has not been run from its recipe yet."""
+        times = [s.wall_clock_s for s in self.stages]
+        return None if None in times else sum(times)
 
 
-def _out_folder(command: str) -> str | None:
-    args = shlex.split(command)
-    return args[args.index("--out") + 1].rstrip("/") if "--out" in args else None
+SEEDS = (0, 1, 2)
+"""The training seeds every kept run is trained with (the tables pool them)."""
 
 
-def _method(training: dict) -> str:
-    if training.get("method"):
-        return training["method"]
-    cfg = training["config"]
-    return method_config(None, [f"{k}={cfg[k]}" for k in ("goal_matcher", "executor")], training.get("scenario"))[0]
-
-
-def _stages(history: dict) -> tuple:
-    """The stages of a kept history; ValueError says why it cannot be replayed."""
+def _kept_stages(history: dict | None, planned: list) -> list | None:
+    """The kept history's stages when they are the recipe's (scenario, overrides, every setting), else None."""
+    if history is None or len(history.get("stages", ())) != len(planned):
+        return None
     defaults = TrainConfig().flat()  # a setting added since a stage was trained had its default then
-    stages, outs = [], []
-    for k, st in enumerate(history["stages"]):
+    out = []
+    for st, p in zip(history["stages"], planned):
         t = st["training"]
-        gone = sorted(set(t["config"]) - set(defaults))
-        if gone:
-            raise ValueError(f"stage {k + 1} uses settings since removed from the product: {', '.join(gone)}")
-        init = None
-        if t.get("init"):
-            folder = str(Path(t["init"]).parent)
-            found = [i for i, o in enumerate(outs) if o == folder]
-            if not found:
-                raise ValueError(f"stage {k + 1} starts from {t['init']}, which no earlier stage wrote")
-            init = found[-1]
-        outs.append(_out_folder(t["last_command"] if "last_command" in t else t["command"]))
-        config = {**defaults, **t["config"]}
-        stages.append(Stage(st["scenario"], _method({**t, "config": config, "scenario": st["scenario"]}),
-                            int(t["seed"]), config, dict(t.get("overrides", {})), init,
-                            int(t["machine"].get("torch_threads", 1)), int(t["env_steps"]),
-                            float(t["wall_clock_s"])))
-    return tuple(stages)
+        if st["scenario"] != p.scenario or dict(t.get("overrides", {})) != p.overrides or \
+                {**defaults, **t["config"]} != p.config or int(t["seed"]) != p.seed:
+            return None
+        out.append(t)
+    return out
+
+
+def _run_stages(recipe: Recipe, keep_stage, seed: int, history: dict | None) -> tuple:
+    """The plan's stages of one recipe run (the chain ending at ``keep_stage``), timed by its kept history."""
+    chain = recipe.chain(keep_stage.name)
+    planned = []
+    for k, st in enumerate(chain):
+        method, cfg, overrides = stage_config(recipe, st)
+        init = None if st.start is None else [c.name for c in chain].index(st.start)
+        steps = st.iterations * st.worlds * get_scenario(st.scenario, **overrides).horizon
+        planned.append(Stage(st.scenario, method, seed, cfg.flat(), overrides, init, 1, steps, None))
+    kept = _kept_stages(history, planned)
+    if kept is None:
+        return tuple(planned)
+    return tuple(Stage(**{**asdict(p), "threads": int(t["machine"].get("torch_threads", 1)),
+                          "env_steps": int(t["env_steps"]), "wall_clock_s": float(t["wall_clock_s"])})
+                 for p, t in zip(planned, kept))
 
 
 def _records(records, root: Path, name: str, shipped_preset: str | None) -> tuple:
@@ -147,28 +147,30 @@ def _records(records, root: Path, name: str, shipped_preset: str | None) -> tupl
 
 
 def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
-    """``(runs, left out)``: every kept history under ``root/results/training`` as a :class:`Run`,
-    and ``(name, reason)`` for each history that cannot be replayed."""
+    """``(runs, left out)``: a :class:`Run` for every recipe, seed in :data:`SEEDS` and kept stage, and
+    ``(name, reason)`` for each kept history under ``root/results/training`` that no recipe makes."""
     root = Path(root)
     base = root / "results" / "training"
     shipped = json.loads((root / "masp_lite/weights/manifest.json").read_text()) \
         if (root / "masp_lite/weights/manifest.json").exists() else {}
     shipped_by_history = {v["history"]: k for k, v in shipped.items() if not v.get("trained_on")}
     records = load_records(root / "results")
-    runs, skipped = [], []
-    for path in sorted(base.rglob("*.manifest.json")):
-        name = str(path.relative_to(base))[: -len(".manifest.json")]
-        preset = shipped_by_history.get(str(path.relative_to(root)))
-        history = json.loads(path.read_text())
-        if preset is None and history.get("file") != f"{Path(name).name}.pt":
-            skipped.append((name, "its weights are neither kept beside it nor shipped"))
-            continue
-        try:
-            stages = _stages(history)
-        except ValueError as e:
-            skipped.append((name, str(e)))
-            continue
-        runs.append(Run(name, stages, preset is not None, history.get("note"), _records(records, root, name, preset)))
+    runs = []
+    for recipe in RECIPES.values():
+        for stage in (s for s in recipe.stages if s.keep):
+            for seed in SEEDS:
+                name = f"{stage.keep}-seed{seed}"
+                path = base / f"{name}.manifest.json"
+                preset = shipped_by_history.get(str(path.relative_to(root)))
+                history = json.loads(path.read_text()) if path.exists() else None
+                stages = _run_stages(recipe, stage, seed, history)
+                note = f"recipe {recipe.name}, stage {stage.name}, training seed {seed}"
+                if history is not None and stages[-1].wall_clock_s is not None:  # kept: its own note
+                    note = history.get("note") or note
+                runs.append(Run(name, stages, preset is not None, note, _records(records, root, name, preset)))
+    planned = {r.name for r in runs}
+    kept = (str(p.relative_to(base))[: -len(".manifest.json")] for p in sorted(base.rglob("*.manifest.json")))
+    skipped = [(name, "no recipe makes it (masp_lite.recipes)") for name in kept if name not in planned]
     return runs, skipped
 
 
@@ -216,8 +218,8 @@ def _tasks(runs) -> list[list[Run]]:
 
 
 def _wall(runs) -> float:
-    """Wall-clock of training ``runs`` as kept, each shared stage counted once."""
-    return sum({_key(r, k): s.wall_clock_s for r in runs for k, s in enumerate(r.stages)}.values())
+    """Wall-clock of training ``runs`` as kept, each shared stage counted once (unknown ones as 0)."""
+    return sum({_key(r, k): s.wall_clock_s or 0.0 for r in runs for k, s in enumerate(r.stages)}.values())
 
 
 def _lpt(durations, workers: int) -> float:
@@ -230,20 +232,23 @@ def _lpt(durations, workers: int) -> float:
 
 def describe(runs, skipped=(), workers: int = 1) -> str:
     """The plan as text: each run's stages, env steps and wall-clock (as kept), the totals."""
-    lines = [f"{len(runs)} training runs ({sum(len(r.stages) for r in runs)} stages); wall-clock as measured when "
-             "the kept runs were trained here (2 cores, one run per core; older runs predate today's kernels):"]
+    lines = [f"{len(runs)} training runs ({sum(len(r.stages) for r in runs)} stages) from the recipes "
+             "(masp_lite.recipes); wall-clock as measured when the kept runs were trained here (2 cores, one run per "
+             "core; older runs predate today's kernels), 'not run yet' where no kept run matches its recipe:"]
     for r in runs:
         where = "masp_lite/weights/" if r.shipped else "results/training/"
-        lines.append(f"  {r.name:<28} {r.env_steps:>10,} env steps {r.wall_clock_s / 60:6.1f} min  -> {where}, "
-                     f"{len(r.records)} record(s)")
+        took = "  not run yet" if r.wall_clock_s is None else f"{r.wall_clock_s / 60:6.1f} min"
+        lines.append(f"  {r.name:<28} {r.env_steps:>10,} env steps {took}  -> {where}, {len(r.records)} record(s)")
         for k, s in enumerate(r.stages, 1):
             start = "random networks" if s.init is None else f"stage {s.init + 1}"
             lines.append(f"      {k}. {s.method} on {s.scenario}, seed {s.seed}, {s.config['updates']} iterations "
                          f"x {s.config['num_envs']} worlds from {start}, {s.threads} thread(s)")
     tasks = _tasks(runs)
+    unknown = sum(r.wall_clock_s is None for r in runs)
     lines.append(f"total: {_wall(runs) / 3600:.1f} h of training in turn (stages two runs share train once); "
                  f"{_lpt([_wall(t) for t in tasks], workers) / 3600:.1f} h as {len(tasks)} task(s) on {workers} "
-                 "worker(s); the evaluations come on top")
+                 "worker(s)" + (f", {unknown} run(s) not timed yet" if unknown else "")
+                 + "; the evaluations come on top")
     for name, why in skipped:
         lines.append(f"  left out: {name}: {why} (its weights and records stay as they are)")
     return "\n".join(lines)
