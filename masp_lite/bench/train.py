@@ -30,6 +30,7 @@ from ..config import FROM_SCRATCH, TrainConfig
 from ..envs import get_scenario
 from ..nets.encoders import plain_autograd
 from ..policies import learned_methods
+from ..threads import TRAIN_THREADS
 from . import load_average, write_json
 
 __all__ = ["add_arguments", "run", "throughput", "METHODS", "DRONE_METHODS"]
@@ -48,7 +49,8 @@ def add_arguments(parser) -> None:
                         help=f"default: {' '.join(METHODS)} (particle), {' '.join(DRONE_METHODS)} (drones)")
     parser.add_argument("--worlds", type=int, default=16, help="worlds per iteration (default 16)")
     parser.add_argument("--iterations", type=int, default=1, help="timed iterations per row (default 1)")
-    parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    parser.add_argument("--threads", type=int, default=TRAIN_THREADS,
+                        help=f"torch threads (default {TRAIN_THREADS}, as train)")
     parser.add_argument("--no-reference", action="store_true", help="skip the plain-autograd MASP row")
     parser.add_argument("--json", default=None, help="also write the numbers to this JSON file")
 
