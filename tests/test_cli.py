@@ -161,3 +161,19 @@ def test_usage_lines_name_the_program_that_was_run(capsys):
     finally:
         sys.argv = argv
     assert capsys.readouterr().out.startswith("usage: masp-lite COMMAND")
+
+
+def test_what_the_readmes_commands_leave_behind_is_ignored():
+    """``pip install .`` (``build/``), ``play ... --out drones.html`` / ``episode.gif`` and ``evaluate --json
+    out.json``, run at the repository root as the README runs them, leave no untracked file."""
+    import shutil
+    import subprocess
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    made = ["build/lib/masp_lite/__init__.py", "build/bdist.linux-x86_64/x", "drones.html", "episode.gif",
+            "out.json", "masp_lite.egg-info/PKG-INFO"]
+    out = subprocess.run(["git", "check-ignore", "--no-index", *made], cwd=ROOT, capture_output=True, text=True)
+    assert sorted(out.stdout.split()) == sorted(made)
+    kept = ["README.md", "masp_lite/viz/template.html", "results/README.md", "solutions/00_tour.ipynb"]
+    out = subprocess.run(["git", "check-ignore", "--no-index", *kept], cwd=ROOT, capture_output=True, text=True)
+    assert out.stdout.split() == []  # nothing of the project's own
