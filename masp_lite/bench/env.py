@@ -24,8 +24,8 @@ Threads: ``--threads`` defaults to the product's count for a world's step
 (:data:`~masp_lite.threads.EVALUATE_THREADS`, one: a second buys nothing here), and torch's threads
 wait passively (:mod:`masp_lite.threads`). Two threads that spin while they wait collapsed 25-50x
 when another program kept a core busy, and two runs of this target back to back then disagreed
-6x; at one thread they agree within a few percent even on a busy machine (research log,
-2026-12-07). Other programs' CPU use is measured before the run (a warning says when the machine
+6x; at one thread, two runs back to back on a loaded machine agreed within 8 % and 17 % (research
+log, 2026-12-07). Other programs' CPU use is measured before the run (a warning says when the machine
 is busy) and the load average printed after; each printed ratio comes with the range of its
 per-round ratios, so a reader sees how far the rounds agreed.
 
