@@ -91,3 +91,17 @@ def test_bench_busy_bad_options_are_one_clear_error(argv, words, capsys):
     assert main(["bench", "busy", *argv]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"error: {words}") and "Traceback" not in err
+
+
+@pytest.mark.parametrize("argv", [["decide", "--agents", "5"], ["train", "--scenarios", "mpe-5", "--worlds", "2",
+                                                                 "--methods", "masp", "--no-reference"],
+                                  ["env", "--seconds", "0.05", "--rounds", "1", "--worlds", "2"]])
+def test_every_timing_target_warns_when_the_machine_is_busy(argv, monkeypatch, capsys):
+    from masp_lite.bench import competing
+    monkeypatch.setattr(competing, "other_cpu_use", lambda sample_s=0.3: 1.7)  # as if 1.7 CPUs were taken
+    import importlib
+    module = importlib.import_module(f"masp_lite.bench.{argv[0]}")
+    if hasattr(module, "other_cpu_use"):
+        monkeypatch.setattr(module, "other_cpu_use", lambda sample_s=0.3: 1.7)
+    assert main(["bench", *argv]) == 0
+    assert "warning: the machine is busy: other programs keep 1.7 of" in capsys.readouterr().out

@@ -2,7 +2,8 @@
 
 * :func:`other_cpu_use` — how many CPUs other programs keep busy right now (from ``/proc/stat`` over a
   short sample; the one-minute load average where that file does not exist);
-* :func:`busy_warning` — the line every target prints when that is enough to move its figures;
+* :func:`busy_warning` — the line every target prints when that is enough to move its figures
+  (:func:`warn_if_busy` measures and prints it);
 * :func:`competing_process` — a program that keeps one CPU busy (a Python loop), started in a
   session of its own: a browser or an editor is another session, and Linux shares CPU time between
   sessions first (autogroups), so a competitor inside the benchmark's own session would only
@@ -18,7 +19,7 @@ import subprocess
 import sys
 import time
 
-__all__ = ["other_cpu_use", "busy_warning", "competing_process", "pinned", "BUSY_CPUS"]
+__all__ = ["other_cpu_use", "busy_warning", "warn_if_busy", "competing_process", "pinned", "BUSY_CPUS"]
 
 #: Other programs' CPU use (in CPUs) from which a target warns that the machine is busy.
 BUSY_CPUS = 0.3
@@ -67,6 +68,14 @@ def busy_warning(use: float | None) -> str | None:
     return (f"warning: the machine is busy: other programs keep {use:.1f} of {os.cpu_count()} CPU(s) busy; "
             f"their work slows every figure below (ratios measured side by side suffer least). For the "
             f"product's own figures, run bench on an otherwise idle machine.")
+
+
+def warn_if_busy() -> float | None:
+    """Measure other programs' CPU use (:func:`other_cpu_use`), print :func:`busy_warning` if any; return the use."""
+    use = other_cpu_use()
+    if (warning := busy_warning(use)) is not None:
+        print(warning)
+    return use
 
 
 @contextlib.contextmanager

@@ -24,6 +24,7 @@ import torch
 from ..reproduction.paper import PAPER
 from ..threads import EVALUATE_THREADS
 from . import load_average, write_json
+from .competing import warn_if_busy
 
 __all__ = ["add_arguments", "run", "decision_time", "PAPER_MS"]
 
@@ -83,6 +84,7 @@ def run(args) -> int:
             raise ValueError(f"--{name.replace('_', '-')}: expected a positive int, got {getattr(args, name)}")
     torch.set_num_threads(args.threads)
     load = load_average()
+    warn_if_busy()
     res = {"threads": args.threads, "load_average_1min": load, "decide": decision_time(args.agents)}
     d = res["decide"]
     print(f"MASP decision time, {d['agents']} agents, CPU, {args.threads} threads ({d['weights']}):")

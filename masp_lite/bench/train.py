@@ -32,6 +32,7 @@ from ..nets.encoders import plain_autograd
 from ..policies import learned_methods
 from ..threads import TRAIN_THREADS
 from . import load_average, write_json
+from .competing import warn_if_busy
 
 __all__ = ["add_arguments", "run", "throughput", "METHODS", "DRONE_METHODS"]
 
@@ -81,6 +82,7 @@ def run(args) -> int:
         raise ValueError(f"--methods: unknown {unknown}; expected some of {list(known)}")
     torch.set_num_threads(args.threads)
     load = load_average()
+    warn_if_busy()
     print(f"training throughput, env steps/s ({args.worlds} worlds, {args.threads} threads, "
           f"{args.iterations} timed iteration(s) after one warm-up)")
     res = {"worlds": args.worlds, "threads": args.threads, "iterations": args.iterations,
