@@ -33,4 +33,11 @@ how every kept weights file is trained (``recipes.py``: each method's stages as 
 reproduction room (``reproduction/``: the paper's numbers, tables, claims and
 training plan, the only code that knows the repository's ``results/``).
 """
+import os as _os
+import sys as _sys
+
 __version__ = "0.1.0"
+
+# Before anything imports torch: its OpenMP threads sleep instead of spinning while they wait, so they never fight
+# another busy program for a core (masp_lite.threads says why). A user's own setting wins; None: torch came first.
+_torch_wait_policy = None if "torch" in _sys.modules else _os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")

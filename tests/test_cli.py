@@ -140,3 +140,40 @@ def test_nbgrader_loads_the_course_config_and_it_agrees_with_generate(monkeypatc
     assert Path(course.root) == ROOT
     assert (Path(course.root) / course.source_directory, Path(course.root) / course.release_directory) == (
         ROOT / generate.SOLUTIONS, ROOT / generate.NOTEBOOKS)  # generate_all's default folders, run from the root
+
+
+def test_usage_lines_name_the_program_that_was_run(capsys):
+    """``masp-lite`` (the console command) and ``python -m masp_lite``: each help names its own program."""
+    from masp_lite.cli import MODULE_PROG, console
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"], prog="masp-lite")
+    assert capsys.readouterr().out.startswith("usage: masp-lite evaluate ")
+    with pytest.raises(SystemExit):
+        main(["bench", "env", "--help"], prog="masp-lite")
+    assert capsys.readouterr().out.startswith("usage: masp-lite bench env ")
+    assert main(["--help"]) == 0
+    assert capsys.readouterr().out.startswith(f"usage: {MODULE_PROG} COMMAND")
+    import sys
+    argv = sys.argv
+    try:
+        sys.argv = ["masp-lite", "--help"]
+        assert console() == 0
+    finally:
+        sys.argv = argv
+    assert capsys.readouterr().out.startswith("usage: masp-lite COMMAND")
+
+
+def test_what_the_readmes_commands_leave_behind_is_ignored():
+    """``pip install .`` (``build/``), ``play ... --out drones.html`` / ``episode.gif`` and ``evaluate --json
+    out.json``, run at the repository root as the README runs them, leave no untracked file."""
+    import shutil
+    import subprocess
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    made = ["build/lib/masp_lite/__init__.py", "build/bdist.linux-x86_64/x", "drones.html", "episode.gif",
+            "out.json", "masp_lite.egg-info/PKG-INFO"]
+    out = subprocess.run(["git", "check-ignore", "--no-index", *made], cwd=ROOT, capture_output=True, text=True)
+    assert sorted(out.stdout.split()) == sorted(made)
+    kept = ["README.md", "masp_lite/viz/template.html", "results/README.md", "solutions/00_tour.ipynb"]
+    out = subprocess.run(["git", "check-ignore", "--no-index", *kept], cwd=ROOT, capture_output=True, text=True)
+    assert out.stdout.split() == []  # nothing of the project's own

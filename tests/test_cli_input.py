@@ -77,7 +77,7 @@ def test_the_readme_lists_every_method():
 
 
 @pytest.mark.parametrize("argv", [["bench", "--help"], *(["bench", t, "--help"] for t in
-                                                        ("env", "decide", "planners", "drones", "train"))])
+                                                        ("env", "decide", "planners", "drones", "train", "busy"))])
 def test_every_bench_help_ends_with_examples(argv, capsys):
     with pytest.raises(SystemExit):
         main(argv)
@@ -116,3 +116,50 @@ def test_a_3d_episodes_numbers_are_the_evaluations_of_the_same_episode(tmp_path)
     path, got = play("h-greedy", "drone-5", tmp_path / "ep.html", seed=1, overrides={"horizon": 60})
     rec = evaluate("h-greedy", "drone-5", episodes=1, seeds=[1], overrides={"horizon": 60}, num_envs=1)
     assert path.read_text().startswith("<") and got == {k: rec[k]["mean"] for k in ("sr", "steps", "cr")}
+
+
+# ------------------------------------------------------------------ a newcomer's machine (issue 56)
+ROOTLESS = "/masp-lite-no-such-folder"  # a path whose first folder would be made at the file system's root
+
+
+@pytest.mark.parametrize("argv", [
+    FAST + ["--json", f"{ROOTLESS}/x.json"],
+    FAST + ["--json", f"{ROOTLESS}/deeper/x.json"],
+    ["play", "--method", "h-greedy", "--scenario", "mpe-5", "--out", f"{ROOTLESS}/x.gif"],
+    ["bench", "env", "--seconds", "0.1", "--json", f"{ROOTLESS}/env.json"],
+])
+def test_a_new_folder_at_the_file_systems_root_is_one_clear_error(argv, capsys):
+    from pathlib import Path
+    if Path(ROOTLESS).exists():
+        pytest.skip(f"{ROOTLESS} exists on this machine")
+    assert main(argv) == 2
+    out = capsys.readouterr()
+    flag = "--out" if "play" in argv else "--json"
+    assert out.err.startswith(f"error: {flag} '{ROOTLESS}/") and "Traceback" not in out.err
+    assert f"the folder '{ROOTLESS}' does not exist" in out.err and "masp-lite-no-such-folder/" in out.err
+    assert not Path(ROOTLESS).exists() and out.out == ""  # nothing made, nothing run
+
+
+def test_missing_folders_below_an_existing_one_are_still_made(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(FAST + ["--seeds", "0", "--set", "horizon=4", "--json", "new/deeper/x.json"]) == 0
+    assert json.loads((tmp_path / "new" / "deeper" / "x.json").read_text())["method"] == "h-greedy"
+
+
+def test_evaluate_threads_default_to_one_as_the_records_and_are_checked(tmp_path, capsys):
+    out = tmp_path / "r.json"
+    assert main(FAST + ["--seeds", "0", "--set", "horizon=4", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["threads"] == 1
+    assert main(FAST + ["--seeds", "0", "--set", "horizon=4", "--threads", "2", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["threads"] == 2
+    assert main(FAST + ["--threads", "0"]) == 2
+    assert "--threads: expected a positive int, got 0" in capsys.readouterr().err
+
+
+def test_the_progress_bars_last_frame_shows_the_total(capsys):
+    """``evaluate --episodes 1`` on three seeds: tqdm draws at most every 0.1 s, so without a last refresh
+    the final frame stopped short (536/900)."""
+    import re
+    evaluate("h-greedy", "mpe-5", episodes=1, seeds=[0, 1, 2], progress=True)
+    frames = re.findall(r"(\d+)/(\d+) \[", capsys.readouterr().err)
+    assert frames and frames[-1] == ("54", "54")  # 3 seeds x 1 batch x 18 steps

@@ -80,3 +80,21 @@ def test_the_wheel_evaluates_every_listed_method_from_another_folder(installed, 
     assert not failed, failed  # every method's default weights are package data
     assert all(0.0 <= r["sr"] <= 1.0 for m, r in out.items() if m != "reproduce")
     assert "expected a folder of evaluate records" in out["reproduce"]  # the records live in a source checkout
+
+
+def test_an_installed_copys_help_names_its_program_and_no_checkout(installed, tmp_path):
+    """``masp-lite`` (the command pip makes) and ``python -m masp_lite`` from the wheel: usage lines under the
+    name that was run, examples runnable as written, nothing about a repository root or its ``.venv``."""
+    env = {"PYTHONPATH": str(installed), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    script = installed / "bin" / "masp-lite"
+    assert script.is_file(), "pip made no masp-lite command"
+    for cmd, prog in (([str(script)], "masp-lite"), ([sys.executable, "-m", "masp_lite"], "python -m masp_lite")):
+        for args in ([], ["evaluate", "--help"], ["bench", "busy", "--help"]):
+            run = subprocess.run([*cmd, *args, *([] if args else ["--help"])], cwd=tmp_path, env=env,
+                                 capture_output=True, text=True, timeout=300)
+            assert run.returncode == 0, run.stderr[-2000:]
+            text = run.stdout
+            assert text.startswith(f"usage: {prog} {args[0] if args else 'COMMAND'}"), text[:200]
+            assert ".venv" not in text and "repository root" not in text, text[-600:]
+            if args:
+                assert f"\n  {prog} {args[0]} " in text  # the examples, written with the program's own name

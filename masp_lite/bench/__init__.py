@@ -11,6 +11,7 @@ in the same run (ratios, never absolute timings in tests):
 ``planners`` the classical planners' step time
 ``drones``   MuJoCo drone world throughput
 ``train``    training env steps/s per method, and MASP's on plain autograd
+``busy``     the hot loops beside a competing busy process: busy / idle ratios
 ===========  ==============================================================
 
 Without a target, every target present in this version runs with its defaults.
@@ -32,6 +33,7 @@ TARGETS = {
     "planners": "step time of the classical planners",
     "drones": "MuJoCo drone world throughput",
     "train": "training env steps/s per method vs plain autograd",
+    "busy": "the hot loops with and without a competing busy process (busy / idle)",
 }
 
 
@@ -56,7 +58,8 @@ def load_average() -> float | None:
 
 
 def write_json(path, result: dict, indent: int = 2) -> None:
-    """Write a target's numbers to ``path`` (its ``--json`` option)."""
+    """Write a target's numbers to ``path`` (its ``--json`` option), making missing folders."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w") as f:
         json.dump(result, f, indent=indent)
         f.write("\n")

@@ -4,7 +4,8 @@ Decision time (the paper's "Execution Efficiency": 14 ms per step for 50 agents)
 world of ``mpe-50`` (``--agents`` changes the team size), both levels — the Goal Matcher
 every ``global_step`` steps and the executor every step — timed around
 ``MASPPolicy.act`` with ``time.perf_counter`` over a whole episode, after one warm-up
-episode, on the CPU with ``--threads`` torch threads (2: the course's laptop); the
+episode, on the CPU with ``--threads`` torch threads (default 1, as ``evaluate``: a second buys nothing
+for one team's decision, :mod:`masp_lite.threads`); the
 process CPU time (``time.process_time``, all threads) is reported too, since on a machine
 shared with other work the wall time mostly measures waiting for a core. The mean
 over steps is reported, so the Goal Matcher's cost is spread over its period, and the
@@ -21,7 +22,9 @@ import time
 import torch
 
 from ..reproduction.paper import PAPER
+from ..threads import EVALUATE_THREADS
 from . import load_average, write_json
+from .competing import warn_if_busy
 
 __all__ = ["add_arguments", "run", "decision_time", "PAPER_MS"]
 
@@ -31,7 +34,8 @@ PAPER_MS = float(PAPER["per-step-time"]["masp"][0])
 
 def add_arguments(parser) -> None:
     parser.add_argument("--agents", type=int, default=50, help="team size on mpe-50 (default 50)")
-    parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    parser.add_argument("--threads", type=int, default=EVALUATE_THREADS,
+                        help=f"torch threads (default {EVALUATE_THREADS}, as evaluate)")
     parser.add_argument("--json", default=None, help="also write the numbers to this JSON file")
 
 
@@ -80,6 +84,7 @@ def run(args) -> int:
             raise ValueError(f"--{name.replace('_', '-')}: expected a positive int, got {getattr(args, name)}")
     torch.set_num_threads(args.threads)
     load = load_average()
+    warn_if_busy()
     res = {"threads": args.threads, "load_average_1min": load, "decide": decision_time(args.agents)}
     d = res["decide"]
     print(f"MASP decision time, {d['agents']} agents, CPU, {args.threads} threads ({d['weights']}):")

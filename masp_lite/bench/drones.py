@@ -28,6 +28,7 @@ import torch
 from ..envs.drone_model import HOVER_COMMAND, SUBSTEPS
 from ..envs.drones import DroneWorld
 from . import calls_per_second, write_json
+from .competing import warn_if_busy
 
 SCENARIO = "drone-20"
 
@@ -73,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds <= 0 or args.rounds < 1 or any(b < 1 for b in args.worlds) or args.threads < 0:
         raise ValueError("bench drones: expected --seconds > 0, --rounds >= 1, --worlds >= 1 and --threads >= 0")
     torch.set_num_threads(1)
+    warn_if_busy()
     print(f"{SCENARIO}: {SUBSTEPS} MuJoCo steps per env step, hovering; raw = mj_step on the same model")
     print(f"{'worlds':>6} {'env-steps/s':>12} {'agent-steps/s':>14} {'raw mj env-steps/s':>19} {'overhead':>9}")
     rows = []

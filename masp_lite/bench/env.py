@@ -20,12 +20,16 @@ into ``--rounds`` that alternate between masp-lite, its TorchRL face and mpe2, s
 change mid-run hits every side alike; each figure is the median over rounds, and every
 printed ratio is the ratio of two printed figures.
 
-The machine's load average is printed before and after: torch's intra-op threads degrade
-badly when the cores are shared (on a busy 2-core machine, ``--threads 2`` measured ~25×
-slower than ``--threads 1``, while single-threaded mpe2 lost ~2×), so a ratio is only
-meaningful on an otherwise idle machine.
+Threads: ``--threads`` defaults to the product's count for a world's step
+(:data:`~masp_lite.threads.EVALUATE_THREADS`, one: a second buys nothing here), and torch's threads
+wait passively (:mod:`masp_lite.threads`). Two threads that spin while they wait collapsed 25-50x
+when another program kept a core busy, and two runs of this target back to back then disagreed
+6x; at one thread, two runs back to back on a loaded machine agreed within 8 % and 17 % (research
+log, 2026-12-07). Other programs' CPU use is measured before the run (a warning says when the machine
+is busy) and the load average printed after; each printed ratio comes with the range of its
+per-round ratios, so a reader sees how far the rounds agreed.
 
-Options: ``--seconds`` per measurement, ``--rounds``, ``--threads`` torch threads (default 2),
+Options: ``--seconds`` per measurement, ``--rounds``, ``--threads`` torch threads (default 1),
 ``--worlds`` the batch sizes, ``--json PATH`` to also write the figures as JSON.
 """
 from __future__ import annotations
@@ -39,7 +43,9 @@ import time
 import torch
 
 from ..envs.particle import NUM_ACTIONS, ParticleWorld
+from ..threads import EVALUATE_THREADS
 from . import calls_per_second, load_average, write_json
+from .competing import busy_warning, other_cpu_use
 
 SCENARIO = "mpe-50"
 RATIO_AT = 64  # the batch size at which masp-lite is compared with mpe2
@@ -47,9 +53,10 @@ RATIO_AT = 64  # the batch size at which masp-lite is compared with mpe2
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seconds", type=float, default=3.0, help="wall time per measurement (default 3)")
-    parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
-    parser.add_argument("--rounds", type=int, default=3,
-                        help="split each measurement into this many alternating rounds (default 3)")
+    parser.add_argument("--threads", type=int, default=EVALUATE_THREADS,
+                        help=f"torch threads (default {EVALUATE_THREADS}, the product's for a world's step)")
+    parser.add_argument("--rounds", type=int, default=5,
+                        help="split each measurement into this many alternating rounds (default 5)")
     parser.add_argument("--worlds", type=int, nargs="+", default=[1, 64, 256],
                         help="numbers of parallel worlds to measure (default 1 64 256)")
     parser.add_argument("--json", metavar="PATH", default=None, help="also write the results as JSON")
@@ -135,6 +142,12 @@ def measure_mpe2(seconds: float, num_agents: int = 50, horizon: int = 90, seed: 
     return rate * num_agents
 
 
+def _spread(ratios) -> str:
+    """The lowest and highest of per-round ratios, as ``"low-high"``."""
+    ratios = sorted(ratios)
+    return f"{ratios[0]:,.2f}-{ratios[-1]:,.2f}"
+
+
 def run(args: argparse.Namespace) -> int:
     if not args.seconds > 0:
         raise ValueError(f"--seconds: expected a positive number, got {args.seconds}")
@@ -143,10 +156,12 @@ def run(args: argparse.Namespace) -> int:
     if any(b < 1 for b in args.worlds):
         raise ValueError(f"--worlds: expected positive ints, got {args.worlds}")
     torch.set_num_threads(args.threads)
-    load_before = load_average()
+    load_before, others = load_average(), other_cpu_use()
     print(f"bench env: {SCENARIO} (50 agents, 30 obstacles), random actions, resets included, "
           f"{args.threads} thread(s), {args.seconds:g} s per measurement in {args.rounds} round(s), "
-          f"{os.cpu_count()} CPU(s), load average {load_before}")
+          f"{os.cpu_count()} CPU(s), load average {load_before}, other programs' CPU use {others}")
+    if (warning := busy_warning(others)) is not None:
+        print(warning)
     # rounds alternate between the sides, so a load change hits all alike
     share = args.seconds / args.rounds
     masp_rounds = {b: [] for b in args.worlds}
@@ -170,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  TorchRL face {base:>3} world(s)      {trl:>14,.0f} agent-steps/s")
         print(f"  native world beside it         {beside:>14,.0f} agent-steps/s (blocks alternating with the face)")
         print(f"  overhead of the TorchRL face at {base} worlds: {overhead:.2f}x the native world's time "
-              f"({beside:,.0f} / {trl:,.0f})")
+              f"({beside:,.0f} / {trl:,.0f}; rounds {_spread(n / t for t, n in trl_rounds)})")
     ref = ratio = None
     if ref_rounds[0] is None:
         print("  mpe2 not installed: no reference measurement")
@@ -178,14 +193,16 @@ def run(args: argparse.Namespace) -> int:
         ref = statistics.median(ref_rounds)
         print(f"  mpe2 simple_spread_v3 (1 episode) {ref:>14,.0f} agent-steps/s")
         ratio = masp[base] / ref
-        print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x ({masp[base]:,.0f} / {ref:,.0f})")
+        print(f"  ratio masp-lite / mpe2 at {base} worlds: {ratio:,.0f}x ({masp[base]:,.0f} / {ref:,.0f}; rounds "
+              f"{_spread(m / r for m, r in zip(masp_rounds[base], ref_rounds))})")
     load_after = load_average()
     print(f"  load average after: {load_after}")
     if args.json:
         result = {"target": "env", "scenario": SCENARIO, "num_agents": 50, "resets": "included",
                   "actions": "random", "threads": args.threads, "seconds": args.seconds,
                   "rounds": args.rounds, "cpus": os.cpu_count(),
-                  "load_average": {"before": load_before, "after": load_after}, "torch": torch.__version__,
+                  "load_average": {"before": load_before, "after": load_after}, "other_cpu_use": others,
+                  "torch": torch.__version__,
                   "masp_agent_steps_per_s": {str(b): v for b, v in masp.items()},
                   "mpe2_agent_steps_per_s": ref,
                   "ratio": None if ratio is None else {"worlds": base, "value": ratio},

@@ -32,6 +32,7 @@ from ..envs import get_scenario, make
 from ..policies import get_factory, make_policy, method_options
 from ..reproduction.paper import PAPER
 from . import load_average, write_json
+from .competing import warn_if_busy
 
 __all__ = ["add_arguments", "run", "step_times", "collision_split", "PAPER_MS"]
 
@@ -95,6 +96,7 @@ def collision_split(method: str, scenario: str = "mpe-20", episodes: int = 20, s
 def run(args: argparse.Namespace) -> int:
     torch.set_num_threads(max(1, int(args.threads)))
     load0 = load_average()
+    warn_if_busy()
     rows, record = [], {"scenario": args.scenario, "world": get_scenario(args.scenario).world,
                         "episodes": args.episodes, "threads": args.threads}
     print(f"planning time per step, {args.scenario}, one world, {args.episodes} episode(s); "

@@ -31,7 +31,9 @@ from ..envs import get_scenario
 from ..nets.encoders import plain_autograd
 from ..policies import learned_methods
 from ..recipes import FROM_SCRATCH
+from ..threads import TRAIN_THREADS
 from . import load_average, write_json
+from .competing import warn_if_busy
 
 __all__ = ["add_arguments", "run", "throughput", "METHODS", "DRONE_METHODS"]
 
@@ -49,7 +51,8 @@ def add_arguments(parser) -> None:
                         help=f"default: {' '.join(METHODS)} (particle), {' '.join(DRONE_METHODS)} (drones)")
     parser.add_argument("--worlds", type=int, default=16, help="worlds per iteration (default 16)")
     parser.add_argument("--iterations", type=int, default=1, help="timed iterations per row (default 1)")
-    parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    parser.add_argument("--threads", type=int, default=TRAIN_THREADS,
+                        help=f"torch threads (default {TRAIN_THREADS}, as train)")
     parser.add_argument("--no-reference", action="store_true", help="skip the plain-autograd MASP row")
     parser.add_argument("--json", default=None, help="also write the numbers to this JSON file")
 
@@ -80,6 +83,7 @@ def run(args) -> int:
         raise ValueError(f"--methods: unknown {unknown}; expected some of {list(known)}")
     torch.set_num_threads(args.threads)
     load = load_average()
+    warn_if_busy()
     print(f"training throughput, env steps/s ({args.worlds} worlds, {args.threads} threads, "
           f"{args.iterations} timed iteration(s) after one warm-up)")
     res = {"worlds": args.worlds, "threads": args.threads, "iterations": args.iterations,

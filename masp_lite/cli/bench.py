@@ -4,7 +4,8 @@ from __future__ import annotations
 import argparse
 
 from ..bench import TARGETS, load_target
-from . import epilog
+from . import epilog, program
+from .evaluate import check_writable
 
 __all__ = ["add_arguments", "run", "EXAMPLES", "TARGET_EXAMPLES"]
 
@@ -20,6 +21,7 @@ TARGET_EXAMPLES = {
     "planners": ["bench planners", "bench planners --scenario mpe-20 --methods h-orca h-rrtstar"],
     "drones": ["bench drones", "bench drones --worlds 16 --threads 2"],
     "train": ["bench train", "bench train --scenarios mpe-50 --methods masp --iterations 2"],
+    "busy": ["bench busy", "bench busy --loops world decide --rounds 7", "bench busy --threads 2   # every loop at 2"],
 }
 
 
@@ -31,12 +33,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _target_args(module, name: str, argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog=f"python -m masp_lite bench {name}",
+    parser = argparse.ArgumentParser(prog=f"{program()} bench {name}",
                                      description=TARGETS[name], epilog=epilog(TARGET_EXAMPLES.get(name, ())),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     if hasattr(module, "add_arguments"):
         module.add_arguments(parser)
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if getattr(args, "json", None) is not None:  # a bad path fails now, not after the measurement
+        check_writable(args.json)
+    return args
 
 
 def run(args: argparse.Namespace) -> int:

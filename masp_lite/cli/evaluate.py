@@ -5,7 +5,9 @@ Runs :func:`masp_lite.evaluation.evaluate` and prints the record as the paper's 
 method's options (``power=2``), each value parsed by the type of what it sets
 (:func:`masp_lite.parsing.parse_sets`, the parser every command uses). The table shows them
 beside the method and scenario. ``--json PATH`` is checked to be writable before the run, so
-a bad path fails at once rather than after the whole evaluation.
+a bad path fails at once rather than after the whole evaluation. ``--threads`` is torch's thread
+count (default :data:`~masp_lite.threads.EVALUATE_THREADS`, the count every committed record names:
+a second thread buys nothing for a world's step or a decision, see :mod:`masp_lite.threads`).
 """
 from __future__ import annotations
 
@@ -13,10 +15,13 @@ import json
 import os
 from pathlib import Path
 
+import torch
+
 from ..envs import OVERRIDES, SCENARIOS
 from ..evaluation import MAX_ENVS, evaluate, format_table
 from ..parsing import parse_sets
 from ..policies import get_factory, method_names, method_options, option_types
+from ..threads import EVALUATE_THREADS
 
 __all__ = ["add_arguments", "run", "split_sets", "override_types", "check_writable", "write_record", "EXAMPLES"]
 
@@ -68,7 +73,9 @@ def check_writable(path, flag: str = "--json", example: str = "out.json") -> Pat
 
     Nothing is created now (:func:`run` makes missing folders when it writes): ``path`` must
     be a writable file, or its nearest existing folder must be a writable folder; a regular
-    file on the way, or ``path`` itself a folder, fails."""
+    file on the way, or ``path`` itself a folder, fails. Missing folders are never made at the
+    file system's root (``/nonexistent/x.json``): that is almost always a relative path written
+    with a leading ``/``, so it fails with the relative path as a suggestion."""
     if not str(path).strip():
         raise ValueError(f"{flag}: expected a file path such as {example!r}, got an empty string")
     path = Path(path)
@@ -83,6 +90,11 @@ def check_writable(path, flag: str = "--json", example: str = "out.json") -> Pat
     folder = path.parent
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
+    if path.is_absolute() and folder == folder.parent and not path.parent.exists():  # a new folder at the root
+        missing = path.parent.relative_to(folder).parts[0]
+        raise ValueError(f"{flag} {str(path)!r}: the folder {str(folder / missing)!r} does not exist, and masp-lite "
+                         f"does not create folders at the file system's root; expected an existing folder or a "
+                         f"relative path such as {str(path.relative_to(folder))!r}")
     if not folder.is_dir():
         raise ValueError(f"{flag} {str(path)!r}: {str(folder)!r} is a file, not a folder; expected a writable path")
     probe = folder / f".masp-lite-probe-{os.getpid()}"
@@ -135,14 +147,19 @@ def add_arguments(parser) -> None:
     parser.add_argument("--checkpoint", default=None, help="weights for a learned method")
     parser.add_argument("--json", default=None, help="write the result record to this file")
     parser.add_argument("--device", default="cpu", help="torch device (default cpu)")
+    parser.add_argument("--threads", type=int, default=EVALUATE_THREADS,
+                        help=f"torch threads (default {EVALUATE_THREADS}, as the committed records)")
     parser.add_argument("--num-envs", type=int, default=None, help=f"batch size (default ≤ {MAX_ENVS})")
     parser.add_argument("--format", default="markdown", choices=["markdown", "text", "latex"],
                         help="table format printed on stdout (default markdown)")
 
 
 def run(args) -> int:
+    if args.threads < 1:
+        raise ValueError(f"--threads: expected a positive int, got {args.threads}")
     overrides, options = split_sets(args.set, args.method, args.scenario, checkpoint_flag=True)
     out = check_writable(args.json) if args.json is not None else None
+    torch.set_num_threads(args.threads)
     record = evaluate(args.method, args.scenario, episodes=args.episodes, seeds=args.seeds,
                       overrides=overrides, method_options=options, checkpoint=args.checkpoint,
                       device=args.device, num_envs=args.num_envs, progress=True)

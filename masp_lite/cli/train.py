@@ -29,6 +29,7 @@ import sys
 import torch
 
 from ..recipes import get_recipe, recipe_names, run_recipe
+from ..threads import TRAIN_THREADS
 from ..training import checkpoint_iterations, method_config, train
 
 __all__ = ["add_arguments", "run", "resume_command", "EXAMPLES"]
@@ -55,7 +56,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                         help="a training setting (masp_lite.config) or scenario override; repeatable")
     parser.add_argument("--init", default=None, help="start from this weights file (fine-tuning)")
-    parser.add_argument("--threads", type=int, default=2, help="torch threads (default 2)")
+    parser.add_argument("--threads", type=int, default=TRAIN_THREADS,
+                        help=f"torch threads (default {TRAIN_THREADS}; they wait passively, see masp_lite.threads)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -70,7 +72,7 @@ def resume_command(args, out: str) -> str:
     parts = [_python(), "-m", "masp_lite", "train", "--method", args.method, "--scenario", args.scenario,
              "--out", out, "--seed", str(args.seed)]
     parts += [x for s in args.sets for x in ("--set", s)]
-    parts += ["--threads", str(args.threads)] if args.threads != 2 else []
+    parts += ["--threads", str(args.threads)] if args.threads != TRAIN_THREADS else []
     parts += ["--quiet"] if args.quiet else []
     return shlex.join([*parts, "--resume"])
 

@@ -1,7 +1,10 @@
 """What every chapter's setup cell calls: seeding, threads, fast mode, showing source.
 
 * :func:`setup` seeds Python's ``random``, NumPy and torch and sets torch's thread count,
-  so a chapter prints the same numbers on every run.
+  so a chapter prints the same numbers on every run. Its threads wait passively (importing
+  :mod:`masp_lite` before torch arranges it, :mod:`masp_lite.threads`), so a browser or another
+  kernel busy beside the chapter does not make them collapse; when torch was imported first,
+  ``setup`` says so and how to fix it.
 * :func:`fast_mode` reads the environment variable ``MASP_LITE_FAST``. Learners get full
   budgets by default (``"0"``); the test suite sets ``"1"`` so every notebook runs in
   about a minute on two cores. Chapters scale their budgets with it, e.g.
@@ -14,9 +17,12 @@ from __future__ import annotations
 import inspect
 import os
 import random
+import warnings
 
 import numpy as np
 import torch
+
+from ..threads import TRAIN_THREADS, passive_wait
 
 __all__ = ["setup", "fast_mode", "show", "FAST_ENV"]
 
@@ -40,8 +46,12 @@ def fast_mode() -> bool:
     raise ValueError(f"{FAST_ENV}={value!r}: expected 1 (small budgets) or 0 (full budgets)")
 
 
-def setup(seed: int = 0, threads: int = 2) -> None:
-    """Seed ``random``, NumPy and torch with ``seed`` and use ``threads`` torch threads."""
+def setup(seed: int = 0, threads: int = TRAIN_THREADS) -> None:
+    """Seed ``random``, NumPy and torch with ``seed`` and use ``threads`` torch threads.
+
+    With more than one thread and torch's threads spinning while they wait (torch imported before
+    :mod:`masp_lite`, or ``OMP_WAIT_POLICY`` set to another policy), a warning says how to avoid the
+    slowdown another busy program would cause."""
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
         raise ValueError(f"seed: expected a non-negative int, got {seed!r}")
     if not isinstance(threads, (int, np.integer)) or isinstance(threads, bool) or threads < 1:
@@ -50,6 +60,11 @@ def setup(seed: int = 0, threads: int = 2) -> None:
     np.random.seed(int(seed))
     torch.manual_seed(int(seed))
     torch.set_num_threads(int(threads))
+    if threads > 1 and not passive_wait():
+        warnings.warn(f"torch's {threads} threads spin while they wait (torch was imported before masp_lite, or "
+                      "OMP_WAIT_POLICY is not PASSIVE): with another program busy they can run many times slower. "
+                      "Restart the kernel and import masp_lite before torch, or call setup(threads=1).",
+                      RuntimeWarning, stacklevel=2)
 
 
 def show(obj):

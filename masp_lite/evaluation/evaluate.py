@@ -141,6 +141,7 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
             timings.append(dt)
     finally:
         if bar is not None:
+            bar.refresh()  # tqdm draws at most every 0.1 s: its last frame would stop short of the total
             bar.close()
     log = EpisodeLog.cat(logs)
     sc = world.scenario
