@@ -10,8 +10,8 @@ evaluation that several tables read runs once.
 
 ``--train`` retrains every kept training run from random networks (:mod:`masp_lite.reproduction.plan`:
 the plan is built from the recipes, :mod:`masp_lite.recipes`; ``--dry-run`` prints it with each
-run's env steps and, from its kept history, wall-clock here), ships the weights and re-makes the records made from them in
-place, then prints the tables. Run it again after a stop: finished stages are skipped, a
+run's env steps and, from its kept history, wall-clock here), ships the weights and re-makes the
+records made from them in place, then prints the tables. Run it again after a stop: finished stages are skipped, a
 stopped one resumes from its last checkpoint. With Ray installed the runs go out as Ray
 tasks (a local Ray on this machine's cores, or ``--address`` of a cluster); ``--in-turn``
 runs them one after the other. ``--only TEXT`` keeps the runs whose name contains TEXT.
