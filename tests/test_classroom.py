@@ -29,6 +29,7 @@ import nbformat
 import pytest
 
 from masp_lite.course import classroom
+from masp_lite.course.checking import REVEAL_MARK
 
 ROOT = Path(__file__).resolve().parents[1]
 CHAPTER = "02_goal_assignment"
@@ -205,7 +206,13 @@ def test_instructor_cycle_grades_honest_partial_and_forged_submissions(tmp_path)
     _submit(folder, "bob", release)                                  # the release, untouched
     assert "np.sqrt((diff ** 2).sum(axis=-1))" in answers["cost_matrix"]
     squared = answers["cost_matrix"].replace("np.sqrt((diff ** 2).sum(axis=-1))", "(diff ** 2).sum(axis=-1)")
-    _submit(folder, "cy", _solved(folder, answers, cost_matrix=squared))   # a partial attempt: one exercise wrong
+    # a partial attempt: one exercise wrong; the learner asked for the controller's answer before solving it
+    cy = _solved(folder, answers, cost_matrix=squared)
+    asked = next(c for c in cy.cells if c.source.startswith('course.reveal("h-greedy controller"'))
+    asked.source = asked.source[:-1] + ", now=True)"
+    asked.outputs = [nbformat.v4.new_output("display_data", data={"text/plain": "def velocity_to_action(...): ..."},
+                                            metadata={REVEAL_MARK: "h-greedy controller"})]
+    _submit(folder, "cy", cy)
     # an honest answer that warns (torch.tensor on a tensor: a UserWarning inside the check)
     assert "nxt = vel.unsqueeze(-2)" in answers["choose_action"]
     warns = answers["choose_action"].replace("nxt = vel.unsqueeze(-2)", "nxt = torch.tensor(vel).unsqueeze(-2)")
@@ -260,6 +267,7 @@ def test_instructor_cycle_grades_honest_partial_and_forged_submissions(tmp_path)
     assert "checking.py" not in feedback  # a failed graded cell ends in one line, not a traceback
     shown_later = "of 'h-greedy controller' appears here once your check passes"
     assert shown_later in feedback and shown_later not in _feedback(folder, "ada")  # bob is not shown the answer
+    assert "you asked to see the library's version of 'h-greedy controller'" in _feedback(folder, "cy")
     feedback = _feedback(folder, "eve")
     assert "UserWarning" in feedback and "warnings cost no points" in feedback
     feedback = _feedback(folder, "fay")
@@ -286,7 +294,9 @@ def test_instructor_cycle_grades_honest_partial_and_forged_submissions(tmp_path)
     assert "forged-run 02_goal_assignment/02_goal_assignment: ⚑ screened, scored zero: the answer cell " \
            "'choose_action' uses get_ipython" in out
     assert "gil 02_goal_assignment/02_goal_assignment: ⚑ screened, sent to manual grading" in out
-    assert not any(line.startswith(("ada ", "eve ", "cy ")) for line in out.splitlines())
+    assert "cy 02_goal_assignment/02_goal_assignment: ⚑ you asked to see the library's version of " \
+           "'h-greedy controller' before your check passed" in out
+    assert not any(line.startswith(("ada ", "eve ", "bob ")) for line in out.splitlines())
 
     # the formgrader of the README's `../.venv/bin/jupyter lab`, started in the course folder, sees the cycle;
     # gil's screened answer waits there for a manual grade

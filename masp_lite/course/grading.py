@@ -234,6 +234,21 @@ def _commented(source: str, why: str) -> str:
     return "\n".join(lines)
 
 
+def _find(rcell, by_gid, by_id):
+    """The submission's cell for release cell ``rcell`` (by grade_id, else by cell id); a note unless by grade_id."""
+    gid = _gid(rcell)
+    sub = by_gid.get(gid)
+    if sub is not None and is_solution(sub) == is_solution(rcell) and is_grade(sub) == is_grade(rcell):
+        return sub, None
+    what = "answer cell" if is_solution(rcell) else "check cell"
+    stripped = by_id.get(rcell.get("id"))
+    if stripped is not None and stripped.cell_type == rcell.cell_type and not _gid(stripped):
+        then = " and graded" if is_solution(rcell) else "; the release's check was run"
+        return stripped, f"{NOTE} the {what} '{gid}' had lost its nbgrader metadata: found by its cell id{then}"
+    then = "graded as not attempted" if is_solution(rcell) else "the release's check was run"
+    return None, f"{NOTE} the {what} '{gid}' was deleted from the submission: {then}"
+
+
 class UseReleaseCells(NbGraderPreprocessor):
     """Grade the release with the submission's answer cells (screened), and note what differs."""
 
@@ -277,22 +292,9 @@ class UseReleaseCells(NbGraderPreprocessor):
                             "reference, say): graded as released")
                 cells.append(cell)
                 continue
-            sub = by_gid.get(gid)
-            same = sub is not None and is_solution(sub) == is_solution(rcell) and is_grade(sub) == is_grade(rcell)
-            if not same:
-                stripped = by_id.get(rcell.get("id"))
-                what = "answer cell" if is_solution(rcell) else "check cell"
-                owner = exercise.get(gid, gid)
-                if stripped is not None and stripped.cell_type == rcell.cell_type and not _gid(stripped):
-                    notes.setdefault(owner, []).append(f"{NOTE} the {what} '{gid}' had lost its nbgrader metadata: "
-                                                       "found by its cell id" + (" and graded" if is_solution(rcell)
-                                                                                 else "; the release's check was run"))
-                    sub = stripped
-                else:
-                    sub = None
-                    notes.setdefault(owner, []).append(
-                        f"{NOTE} the {what} '{gid}' was deleted from the submission: "
-                        + ("graded as not attempted" if is_solution(rcell) else "the release's check was run"))
+            sub, note = _find(rcell, by_gid, by_id)
+            if note:
+                notes.setdefault(exercise.get(gid, gid), []).append(note)
             if sub is not None:
                 used.add(id(sub))
             if is_solution(rcell) and sub is not None:
