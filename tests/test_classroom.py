@@ -127,6 +127,11 @@ def test_screen_passes_every_answer_of_the_course_and_refuses_each_family():
         "def f(x):\n    return getattr(x, 'f_' + 'globals')": "uses getattr",
         "def f(x):\n    return x.f_back": "attribute .f_back",
         "print('hi')\ndef f(x):\n    return x": "runs a expr statement",
+        "from masp_lite import course as c": "imports course from masp_lite",
+        "def f(x):\n    return torch.os.getcwd()": "attribute .os",
+        "def f(x):\n    return torch.from_file('s' + 'olutions', size=9)": "attribute .from_file",
+        "def f(x):\n    return '{0.f_globals}'.format(x)": "format field that reads attributes",
+        "def f(x):\n    return np.save('masp_lite.py', x)": "attribute .save",
     }
     for source, reason in forged.items():
         got = screen(source)

@@ -70,12 +70,14 @@ FORBIDDEN_NAMES = frozenset({
     "builtins", "ctypes", "marshal", "pickle", "dill", "nbformat", "json", "IPython", "display",
     "course", "checking", "grading", "RESULTS", "REVEALED", "Outcome", "check", "assert_passed", "reveal",
     "In", "Out", "_ih", "_oh", "_dh", "_i", "_ii", "_iii", "__", "___"})
-#: Attributes an answer may not read or write (besides every ``__dunder__`` but ``__init__`` and private ``_x``).
-FORBIDDEN_ATTRIBUTES = frozenset({
+#: Attributes an answer may not read or write, besides the names above (``torch.os`` is ``os``), every
+#: ``__dunder__`` but ``__init__``, and private ``_x``: frames and closures, files, compiled or downloaded code.
+FORBIDDEN_ATTRIBUTES = FORBIDDEN_NAMES | frozenset({
     "f_globals", "f_locals", "f_back", "f_code", "gi_frame", "cr_frame", "tb_frame", "cell_contents",
-    "co_code", "func_globals", "read_text", "read_bytes", "load", "loads", "loadtxt", "genfromtxt",
-    "fromfile", "memmap", "open", "system", "popen", "getsource", "modules", "reload",
-    "course", "checking", "grading", "RESULTS", "REVEALED", "Outcome", "check", "assert_passed", "reveal"})
+    "co_code", "func_globals", "read", "readline", "readlines", "read_text", "read_bytes", "load", "loads",
+    "loadtxt", "genfromtxt", "fromfile", "from_file", "memmap", "loadmat", "listdir", "scandir", "walk", "glob",
+    "write", "write_text", "write_bytes", "save", "savetxt", "savez", "tofile", "system", "popen", "getsource",
+    "modules", "reload", "load_inline", "load_library", "cpp_extension", "ctypeslib", "hub"})
 _HISTORY = re.compile(r"^_(i+|i?\d+)$")  # IPython's _i3, _12, _ii
 _DISK = re.compile(r"solutions|\.ipynb|source[/\\]|release[/\\]|autograded|gradebook")
 
@@ -177,6 +179,8 @@ def screen(source: str) -> str | None:
             text = node.value
             if _DISK.search(text):
                 return f"names the course's files ({text[:40]!r})"
+            if re.search(r"__\w+__", text) or re.search(r"\{[^{}]*[.\[][^{}]*\}", text):
+                return f"holds {text[:40]!r}, a dunder name or a format field that reads attributes"
             if re.fullmatch(r"[A-Za-z_]\w*", text) and (_bad_name(text) or _bad_attribute(text)):
                 return f"spells out {text!r}, a name it may not use"
     for node in tree.body:
