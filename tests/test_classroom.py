@@ -150,8 +150,8 @@ FORGERIES = {
     "run": {   # the instructor's notebook read from the course folder, IPython's hooks rewrite the check cells
                # before they run, the checker patched from the answer cell
         "cost_matrix": "def cost_matrix(agent_pos, goal_pos):\n"
-                       "    nb = open('../../../source/02_goal_assignment/02_goal_assignment.ipynb').read()\n"
-                       "    raise NotImplementedError(nb[:10])",
+                       "    with open('../../../source/02_goal_assignment/02_goal_assignment.ipynb') as f:\n"
+                       "        raise NotImplementedError(str(f))",
         "choose_action": "get_ipython().input_transformers_post.append(lambda lines: ['pass\\n'])\n"
                          "def choose_action(vel, desired_vel):\n    return vel",
         "my_bottleneck": "import masp_lite.course as c\nc.assert_passed = lambda name: None\n"
