@@ -110,6 +110,52 @@ def test_check_makes_the_reference_and_what_it_wraps_unavailable(capsys):
         course.check(via_forward, wrapper, inputs=inputs, name="c", hide="encoders")
 
 
+def test_a_warning_inside_the_check_is_a_note_on_stdout_not_stderr(capsys):
+    def copies(x, scale=2.0):
+        x = torch.tensor(x)  # a tensor copied this way warns (UserWarning), a common honest answer
+        print("debug", file=sys.stderr)
+        return {"y": x * scale, "n": int(x.numel())}
+
+    assert course.check(copies, _ref, inputs=_cases, name="warns", strict=True) is copies
+    out, err = capsys.readouterr()
+    assert err == ""                                     # nbgrader would score a cell with stderr zero
+    assert "✓ warns passed (3 cases)" in out and "debug" in out
+    assert out.count("note: your function warned (UserWarning: To copy construct from a tensor") == 1  # once
+    assert "warnings cost no points" in out
+
+
+def test_check_refuses_the_library_function_itself(capsys):
+    from masp_lite.nets import encoders
+
+    inputs = [(torch.randn(2, 3, 4), torch.randn(2, 3, 4))]
+    assert course.check(encoders.s_inter, encoders.s_inter, inputs=inputs, name="itself") is encoders.s_inter
+    assert "your function is the library's own encoders.s_inter" in capsys.readouterr().out
+    assert not course.RESULTS["itself"].passed
+
+
+def test_reveal_shows_the_reference_only_after_the_check_passes(capsys, monkeypatch):
+    from masp_lite.nets import encoders
+
+    shown = []
+    monkeypatch.setattr("IPython.display.display", lambda obj, **kw: shown.append((obj, kw)))
+    course.RESULTS.pop("rev", None)
+    course.REVEALED.discard("rev")
+    course.reveal("rev", encoders.s_inter)
+    assert shown == [] and "appears here once your check passes (not checked yet" in capsys.readouterr().out
+    course.check(lambda q, k: None, encoders.s_inter, inputs=[(torch.ones(1, 2, 3), torch.ones(1, 2, 3))], name="rev")
+    course.reveal("rev", encoders.s_inter)
+    assert shown == [] and "(failed so far)" in capsys.readouterr().out
+    course.reveal("rev", encoders.s_inter, now=True)   # asked for: shown, recorded, marked for the grader
+    assert "rev" in course.REVEALED and "your grade records it" in capsys.readouterr().out
+    assert len(shown) == 1 and shown[0][1] == {"metadata": {course.checking.REVEAL_MARK: "rev"}}
+    assert "def s_inter" in shown[0][0].data
+    course.RESULTS["rev"] = course.Outcome("rev", "passed", "✓")  # as a passed check leaves it
+    course.reveal("rev", encoders.s_inter)
+    assert len(shown) == 2 and shown[1][1] == {} and "def s_inter" in shown[1][0].data
+    with pytest.raises(ValueError, match="reveal: expected"):
+        course.reveal("rev")
+
+
 def test_a_failed_graded_cell_is_one_line():
     with pytest.raises(AssertionError) as info:
         course.assert_passed("never-checked-either")

@@ -1,35 +1,42 @@
-"""Every chapter runs top to bottom under nbval, both versions, in fast mode.
+"""Every chapter runs top to bottom, both versions, in fast mode; the learner versions show no answer early.
 
-Each notebook runs in its own ``pytest --nbval-lax`` subprocess (a fresh kernel from this
-environment, ``MASP_LITE_FAST=1``), so the default ``python -m pytest`` covers the course
-without collecting notebooks itself. Instructor versions must pass every graded check;
-learner versions run as shipped (their graded cells carry the ``raises-exception`` tag).
+Instructor versions run in their own ``pytest --nbval-lax`` subprocess (a fresh kernel from this
+environment, ``MASP_LITE_FAST=1``) and must pass every graded check. Learner versions run as
+shipped, every exercise a stub, through nbclient (cells tagged ``raises-exception`` — the graded
+ones — may fail, no other cell may), and their outputs are then searched for the source of every
+exercise's reference (what its check compares with, and what it hides): a learner who has not
+solved an exercise must not see its answer (``course.reveal`` shows it only after the check passes).
 
 nbval stops each kernel by killing it, so a chapter's ``tempfile.TemporaryDirectory`` (chapter
-06's ``masp-run-*`` run folder) is never removed by the kernel. Each test gives its subprocess a
+06's ``masp-run-*`` run folder) is never removed by the kernel. Each test gives its kernel a
 temporary folder of its own (``TMPDIR``, inside pytest's ``tmp_path``, which pytest rotates), and
-checks that chapter 06's run folder landed there. The test never looks at the system's shared
-temporary folder: another process running chapter 06 or 11 at the same moment makes its own
-``masp-run-*`` folders there, and they are none of this test's business.
+the instructor run checks that chapter 06's run folder landed there. No test looks at the system's
+shared temporary folder: another process running chapter 06 or 11 at the same moment makes its own
+``masp-run-*`` folders there, and they are none of these tests' business.
 """
+import ast
+import inspect
 import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import nbformat
 import pytest
+from nbclient import NotebookClient
 
 ROOT = Path(__file__).resolve().parents[1]
-NOTEBOOKS = sorted((ROOT / "solutions").glob("*.ipynb")) + sorted((ROOT / "notebooks").glob("*.ipynb"))
+SOLUTIONS = sorted((ROOT / "solutions").glob("*.ipynb"))
+LEARNER = sorted((ROOT / "notebooks").glob("*.ipynb"))
 LIMIT_S = 600  # hard stop; a chapter should take about a minute (3 minutes at most) on 2 cores
 #: Chapters whose run folder outlives their kernel (a ``TemporaryDirectory`` kept for the whole chapter).
 KEEPS_A_RUN_FOLDER = {"06_training_masp"}
 
 
 @pytest.mark.notebook
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=[f"{p.parent.name}/{p.stem}" for p in NOTEBOOKS])
-def test_notebook_runs_under_nbval(path, tmp_path):
+@pytest.mark.parametrize("path", SOLUTIONS, ids=[f"solutions/{p.stem}" for p in SOLUTIONS])
+def test_instructor_notebook_runs_under_nbval(path, tmp_path):
     own_tmp = tmp_path / "tmp"  # this test's own: nothing another process does can appear here
     own_tmp.mkdir()
     env = dict(os.environ, MASP_LITE_FAST="1", MPLBACKEND="Agg", PYDEVD_DISABLE_FILE_VALIDATION="1",
@@ -42,4 +49,80 @@ def test_notebook_runs_under_nbval(path, tmp_path):
     assert proc.returncode == 0, f"{path.name} failed under nbval:\n{proc.stdout[-6000:]}\n{proc.stderr[-2000:]}"
     if path.stem in KEEPS_A_RUN_FOLDER:  # the kernel used this test's temp folder, not the system's
         assert list(own_tmp.glob("masp-run-*")), f"{path.name} made no run folder in its own temp folder {own_tmp}"
-    print(f"{path.parent.name}/{path.name}: {took:.0f} s")
+    print(f"solutions/{path.name}: {took:.0f} s")
+
+
+def references(instructor: nbformat.NotebookNode) -> dict[str, str]:
+    """``{expression: source}`` of every exercise's reference and hidden objects, from its graded check cells."""
+    namespace: dict = {}
+    for cell in instructor.cells:  # the chapter's imports, to resolve the references' names
+        if cell.cell_type == "code":
+            try:
+                tree = ast.parse(cell.source)
+            except SyntaxError:
+                continue
+            for node in tree.body:
+                if isinstance(node, (ast.Import, ast.ImportFrom)):
+                    try:
+                        exec(compile(ast.Module([node], []), "<imports>", "exec"), namespace)
+                    except Exception:  # noqa: BLE001 - an optional import
+                        pass
+    found = {}
+    for cell in instructor.cells:
+        if not cell.metadata.get("nbgrader", {}).get("grade"):
+            continue
+        for node in ast.walk(ast.parse(cell.source)):
+            if not (isinstance(node, ast.Call) and ast.unparse(node.func) == "course.check"):
+                continue
+            exprs = [node.args[1]] + [e for k in node.keywords if k.arg == "hide" for e in k.value.elts]
+            for expr in map(ast.unparse, exprs):
+                try:
+                    found[expr] = inspect.getsource(eval(expr, dict(namespace)))
+                except Exception:  # noqa: BLE001 - a notebook-defined wrapper: its library part is in hide=[...]
+                    pass
+    return found
+
+
+def _outputs_text(nb) -> str:
+    parts = []
+    for cell in nb.cells:
+        for out in cell.get("outputs", []):
+            parts.append(out.get("text", ""))
+            parts += [v if isinstance(v, str) else "" for v in (out.get("data") or {}).values()]
+    return "\n".join(parts)
+
+
+@pytest.mark.notebook
+@pytest.mark.parametrize("path", LEARNER, ids=[f"notebooks/{p.stem}" for p in LEARNER])
+def test_learner_notebook_runs_and_shows_no_answer_early(path, tmp_path, monkeypatch):
+    monkeypatch.setenv("MASP_LITE_FAST", "1")
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    monkeypatch.setenv("PYDEVD_DISABLE_FILE_VALIDATION", "1")
+    monkeypatch.setenv("TMPDIR", str(tmp_path))  # the kernel's own temp folder (see the module docstring)
+    nb = nbformat.read(path, as_version=4)
+    start = time.perf_counter()
+    NotebookClient(nb, timeout=LIMIT_S, kernel_name="python3",  # raises on an error outside raises-exception cells
+                   resources={"metadata": {"path": str(path.parent)}}).execute()
+    took = time.perf_counter() - start
+    shown = _outputs_text(nb)
+    refs = references(nbformat.read(ROOT / "solutions" / path.name, as_version=4))
+    assert refs, f"{path.name}: no exercise reference found"
+    leaked = [expr for expr, source in refs.items() if source.strip() in shown]
+    assert leaked == [], f"{path.name}: the learner version shows the answer of an unsolved exercise: {leaked}"
+    print(f"notebooks/{path.name}: {took:.0f} s")
+
+
+def test_the_leak_search_finds_a_shown_reference():
+    """The search above would see a reference: a passed check's reveal shows exactly that source."""
+    import masp_lite.course as course
+    from masp_lite.algos import assignment
+
+    instructor = nbformat.read(ROOT / "solutions" / "02_goal_assignment.ipynb", as_version=4)
+    source = references(instructor)["assignment.distance_matrix"]
+    assert source == inspect.getsource(assignment.distance_matrix)
+    from IPython.core.formatters import DisplayFormatter
+
+    data, _ = DisplayFormatter().format(course.show(assignment.distance_matrix))
+    fake = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(outputs=[
+        nbformat.v4.new_output("display_data", data=data)])])
+    assert source.strip() in _outputs_text(fake)

@@ -21,8 +21,10 @@ it is generated. ``notebooks/README.md`` is the course map.
     ## Summary                               (the end: nothing follows it)
 
 Show library code with ``course.show(fn)`` (``inspect.getsource``); never paste it, and
-never show an exercise's reference before the exercise: show it after the graded check
-("the library's version, to compare with yours"; ``tests/test_exercises.py`` enforces it).
+never show an exercise's reference before the exercise. After the graded check, show it with
+``course.reveal("exercise name", fn)``: the source appears only once the check has passed
+(``reveal(..., now=True)`` shows it anyway, and the grade records it); ``tests/test_exercises.py``
+and the learner runs of ``tests/test_notebooks.py`` enforce it.
 Scale every budget with ``FAST`` (``episodes = 3 if FAST else 100``): in fast mode a
 chapter must run in about a minute on 2 cores (3 minutes at most).
 
@@ -65,22 +67,27 @@ Build cells with :mod:`masp_lite.course.authoring` (``markdown``, ``code``,
 
 **Grading** (:mod:`masp_lite.course.classroom`): ``python -m masp_lite.course.classroom init DIR``
 writes an nbgrader course folder from ``solutions/``; nbgrader's own commands then run the
-cycle (README, "Grading with nbgrader").
+cycle (README, "Grading with nbgrader"), with :mod:`masp_lite.course.grading`'s preprocessors:
+only the answer cells come from a submission, each is screened for forgeries, and whatever
+was deleted, stripped or screened is named in the feedback and by ``nbgrader export``. An
+answer cell holds only imports, function definitions and constants: a helper goes in the same cell.
 
 Ship notebooks without outputs (``jupyter nbconvert --clear-output --inplace``, or build
 them with :func:`masp_lite.course.authoring.notebook`).
 """
 from .checking import (
                        RESULTS,
+                       REVEALED,
                        ExerciseNotPassed,
                        LibraryUnavailable,
                        Outcome,
                        assert_passed,
                        check,
                        compare,
+                       reveal,
                        unavailable,
 )
 from .session import FAST_ENV, fast_mode, setup, show
 
-__all__ = ["check", "assert_passed", "compare", "unavailable", "Outcome", "RESULTS", "LibraryUnavailable",
-           "ExerciseNotPassed", "fast_mode", "setup", "show", "FAST_ENV"]
+__all__ = ["check", "assert_passed", "compare", "unavailable", "reveal", "Outcome", "RESULTS", "REVEALED",
+           "LibraryUnavailable", "ExerciseNotPassed", "fast_mode", "setup", "show", "FAST_ENV"]

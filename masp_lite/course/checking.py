@@ -14,7 +14,15 @@ cell calls :func:`check`, which
   entries differ beyond tolerance and the largest difference) or
   ``… not attempted yet (NotImplementedError)`` — and
 * returns the function the rest of the chapter should use: the learner's when it passed,
-  the reference otherwise. A wrong or skipped answer never stops the chapter.
+  the reference otherwise. A wrong or skipped answer never stops the chapter;
+* runs both functions with warnings recorded and ``sys.stderr`` sent to ``sys.stdout``, and
+  prints each distinct warning as a ``note:`` line after the verdict: ``nbgrader autograde``
+  scores a graded cell zero for *any* stderr output, and a warning (torch's
+  ``torch.tensor(tensor)`` copy, say) is no mistake.
+
+:func:`reveal` shows the library's version after the check, only once it has passed (or when
+the learner asks for it with ``now=True``, which :data:`REVEALED` records and
+``nbgrader autograde`` reports, see :mod:`masp_lite.course.grading`).
 
 Graded cells (nbgrader's ``grade: true`` cells) additionally call :func:`assert_passed`
 (or pass ``strict=True``), which raises :class:`ExerciseNotPassed` (an ``AssertionError``
@@ -31,14 +39,15 @@ import contextlib
 import copy
 import math
 import sys
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-__all__ = ["check", "assert_passed", "compare", "unavailable", "Outcome", "RESULTS", "LibraryUnavailable",
-           "ExerciseNotPassed"]
+__all__ = ["check", "assert_passed", "compare", "unavailable", "reveal", "Outcome", "RESULTS", "REVEALED",
+           "LibraryUnavailable", "ExerciseNotPassed", "REVEAL_MARK"]
 
 
 @dataclass(frozen=True)
@@ -59,6 +68,12 @@ class Outcome:
 
 #: Latest outcome of every exercise checked in this session, by name.
 RESULTS: dict[str, Outcome] = {}
+
+#: The exercises whose library version the learner asked to see before passing (``reveal(..., now=True)``).
+REVEALED: set[str] = set()
+
+#: The output metadata key that marks a reference shown before its check passed (read by the grader).
+REVEAL_MARK = "masp_lite_revealed"
 
 
 def compare(got, expected, rtol: float = 1e-5, atol: float = 1e-6, where: str = "output") -> str | None:
@@ -151,13 +166,22 @@ def _cases(inputs, seeds):
     return list(inputs)
 
 
-def _call(fn, case):
+def _call(fn, case, notes: list[str] | None = None):
+    """``fn`` on a deep copy of ``case``; its warnings go to ``notes`` and its stderr to stdout."""
     case = copy.deepcopy(case)
-    if isinstance(case, tuple):
-        return fn(*case)
-    if isinstance(case, dict):
-        return fn(**case)
-    return fn(case)
+    with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stderr(sys.stdout):
+        warnings.simplefilter("always")
+        if isinstance(case, tuple):
+            out = fn(*case)
+        elif isinstance(case, dict):
+            out = fn(**case)
+        else:
+            out = fn(case)
+    for w in caught:
+        line = f"{w.category.__name__}: {str(w.message).splitlines()[0] if str(w.message) else ''}"
+        if notes is not None and line not in notes:
+            notes.append(line)
+    return out
 
 
 class LibraryUnavailable(RuntimeError):
@@ -299,12 +323,16 @@ def check(learner_fn: Callable, reference_fn: Callable, inputs, name: str, *,
     if isinstance(hide, (str, bytes)) or not isinstance(hide, Sequence) or not all(callable(h) for h in hide):
         raise ValueError(f"check({name!r}): hide: expected a list of library functions or classes, got {hide!r}")
     cases = _cases(inputs, seeds)
-    outcome = None
-    for i, case in enumerate(cases):
+    outcome, notes = None, []
+    library = _targets([reference_fn, *hide])
+    if any(fn is t for fn in _targets([learner_fn]) for t in library):  # it, or what it wraps, is the reference
+        outcome = Outcome(name, "failed", f"✗ {name} failed: your function is the library's own "
+                          f"{_label(reference_fn)} — write it yourself; the library's version is used from here on")
+    for i, case in enumerate(cases if outcome is None else []):
         expected = _call(reference_fn, case)  # a failing reference is the chapter's bug: let it raise
         try:
             with unavailable([reference_fn, *hide], learner_fn):
-                got = _call(learner_fn, case)
+                got = _call(learner_fn, case, notes)
         except NotImplementedError:
             outcome = Outcome(name, "not attempted",
                               f"… {name}: not attempted yet (NotImplementedError): "
@@ -326,6 +354,8 @@ def check(learner_fn: Callable, reference_fn: Callable, inputs, name: str, *,
         outcome = Outcome(name, "passed", f"✓ {name} passed ({len(cases)} cases): your version is used from here on")
     RESULTS[name] = outcome
     print(outcome.message)
+    for note in notes[:3]:  # stdout: nbgrader scores a cell that writes to stderr zero
+        print(f"  note: your function warned ({note}); warnings cost no points")
     if strict:
         assert_passed(name)
     return learner_fn if outcome.passed else reference_fn
@@ -338,3 +368,35 @@ def assert_passed(name: str) -> None:
         raise ExerciseNotPassed(f"{name}: not checked yet; run the check cell above first")
     if not outcome.passed:
         raise ExerciseNotPassed(f"{name}: {outcome.status} — this graded cell passes once the check prints ✓")
+
+
+def reveal(name: str, *objects, now: bool = False):
+    """Show the source of ``objects`` (the library's version of exercise ``name``) once its check passed.
+
+    Before the check of ``name`` has passed, prints where the answer will appear instead, unless
+    ``now=True``: then the source is shown anyway, ``name`` joins :data:`REVEALED`, and the
+    display carries the :data:`REVEAL_MARK` metadata, so a submission that looked at the answer
+    before earning it says so in its grade (``nbgrader autograde``, :mod:`masp_lite.course.grading`).
+    """
+    from IPython.display import display
+
+    from .session import show
+
+    if not isinstance(name, str) or not name or not objects:
+        raise ValueError(f"reveal: expected an exercise name and the library objects to show, "
+                         f"got {name!r}, {objects!r}")
+    outcome = RESULTS.get(name)
+    if outcome is not None and outcome.passed:
+        for obj in objects:
+            display(show(obj))
+        return None
+    if not now:
+        state = "not checked yet" if outcome is None else outcome.status
+        print(f"… the library's version of {name!r} appears here once your check passes ({state} so far). "
+              f"To see it now: course.reveal({name!r}, ..., now=True) — your grade records that you looked.")
+        return None
+    REVEALED.add(name)
+    print(f"⚑ the library's version of {name!r}, shown before your check passed (your grade records it):")
+    for obj in objects:
+        display(show(obj), metadata={REVEAL_MARK: name})
+    return None

@@ -32,7 +32,14 @@ The folder's ``nbgrader_config.py``
   chapter's training cells short);
 * keeps nbgrader's exchange in ``classroom/exchange`` instead of ``/srv/nbgrader/exchange``,
   so ``release_assignment``, ``fetch_assignment``, ``submit`` and ``collect`` work on one
-  machine without administrator rights.
+  machine without administrator rights;
+* grades with :mod:`masp_lite.course.grading`: ``autograde`` runs the release with only the
+  submission's answer cells, each screened for forgeries (a screened answer scores zero with
+  its reason, or goes to manual grading: ``c.UseReleaseCells.screened``, ``init --screened``),
+  and ``export`` prints, beside ``grades.csv``, every deleted, stripped or screened cell.
+
+``init --learners DIR`` also writes the copy of the course learners get
+(:func:`learner_copy`): the release notebooks and the library, without ``solutions/``.
 """
 from __future__ import annotations
 
@@ -44,7 +51,14 @@ from pathlib import Path
 
 from .generate import SOLUTIONS
 
-__all__ = ["init", "chapters", "CONFIG"]
+__all__ = ["init", "chapters", "learner_copy", "CONFIG", "LEARNER_FILES", "SCREENED"]
+
+#: What :func:`learner_copy` takes from the repository besides the learner notebooks: the library and
+#: the records its chapters read, the files that install it, the README and the course map.
+LEARNER_FILES = ("masp_lite", "results", "docs", "pyproject.toml", "environment.txt", "README.md",
+                 "notebooks/README.md")
+#: What a screened answer gets: ``"zero"`` (its reason in the feedback) or ``"manual"`` grading.
+SCREENED = ("zero", "manual")
 
 #: The course folder's ``nbgrader_config.py``.
 CONFIG = '''\
@@ -55,9 +69,11 @@ Run nbgrader's commands from this folder, e.g. ``../.venv/bin/nbgrader autograde
 import os
 import sys
 
-from nbgrader.converters import GenerateAssignment
+from nbgrader.converters import Autograde, GenerateAssignment
+from nbgrader.preprocessors import Execute, SaveAutoGrades
 
 from masp_lite.course.generate import TagGradedCells
+from masp_lite.course.grading import RecordGrading, ReportGrading, UseReleaseCells
 
 c = get_config()  # noqa: F821  (traitlets defines get_config for its configuration files)
 
@@ -75,6 +91,17 @@ c.Exchange.root = os.path.join(c.CourseDirectory.root, "exchange")
 c.GenerateAssignment.preprocessors = GenerateAssignment.class_traits()["preprocessors"].default() + [TagGradedCells]
 # chapters train and evaluate: no per-cell time limit (nbgrader's default is 30 s)
 c.Execute.timeout = None
+
+# grade the release with only the submission's answer cells, each screened for forgeries
+# (masp_lite.course.grading); what was deleted, stripped or screened is named in the feedback and by export
+c.Autograde.sanitize_preprocessors = [UseReleaseCells] + Autograde.class_traits()["sanitize_preprocessors"].default()
+_steps = Autograde.class_traits()["autograde_preprocessors"].default()
+_steps.insert(_steps.index(Execute) + 1, ReportGrading)
+_steps.insert(_steps.index(SaveAutoGrades) + 1, RecordGrading)
+c.Autograde.autograde_preprocessors = _steps
+# a screened answer scores "zero" (its one-line reason in the feedback) or goes to "manual" grading
+c.UseReleaseCells.screened = {screened!r}
+c.ExportApp.plugin_class = "masp_lite.course.grading.ExportWithNotes"
 '''
 
 
@@ -99,13 +126,48 @@ def _create_gradebook(folder: Path, course_id: str) -> Path:
     return db
 
 
+def learner_copy(dst: str | Path, *, root: str | Path = ".", solutions: str | Path | None = None) -> Path:
+    """Write the learners' copy of the course at ``dst``: release notebooks and the library, no solutions.
+
+    ``dst/notebooks/`` gets the learner version of every instructor notebook (generated afresh,
+    as ``notebooks/``); :data:`LEARNER_FILES` are copied from the repository at ``root``
+    (caches left out). ``solutions/``, the tests and the instructor's nbgrader configuration
+    stay behind. ``dst`` must not exist.
+    """
+    from .generate import generate_all
+
+    root, dst = Path(root).resolve(), Path(dst).resolve()
+    solutions = Path(solutions) if solutions is not None else root / SOLUTIONS
+    if dst.exists():
+        raise ValueError(f"learner_copy: {dst} exists; expected a new folder")
+    missing = [name for name in LEARNER_FILES if not (root / name).exists()]
+    if missing or not chapters(solutions):
+        raise ValueError(f"learner_copy: expected the repository at {str(root)!r} "
+                         f"(missing {missing or ['solutions/']})")
+    dst.mkdir(parents=True)
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info")
+    for name in LEARNER_FILES:
+        src, out = root / name, dst / name
+        out.parent.mkdir(parents=True, exist_ok=True)
+        if src.is_dir():
+            shutil.copytree(src, out, ignore=ignore)
+        else:
+            shutil.copyfile(src, out)
+    generate_all(solutions, dst / "notebooks")
+    return dst
+
+
 def init(folder: str | Path, names: list[str] | None = None, *, solutions: str | Path | None = None,
-         course_id: str = "masp-lite", force: bool = False) -> list[Path]:
+         course_id: str = "masp-lite", force: bool = False, screened: str = "zero") -> list[Path]:
     """Write an nbgrader course folder at ``folder`` from the instructor notebooks; return the sources.
 
     ``names`` picks chapters by notebook stem (``"03_graph_encoders"``) or number (``"03"``);
     all chapters by default. An existing source notebook is replaced only with ``force``.
+    ``screened`` is what the folder's configuration gives an answer that screening refuses
+    (:data:`SCREENED`); change it later in ``nbgrader_config.py`` (``c.UseReleaseCells.screened``).
     """
+    if screened not in SCREENED:
+        raise ValueError(f"init: screened: expected one of {SCREENED}, got {screened!r}")
     solutions = Path(solutions) if solutions is not None else SOLUTIONS
     available = chapters(solutions)
     if not available:
@@ -125,7 +187,7 @@ def init(folder: str | Path, names: list[str] | None = None, *, solutions: str |
         dst.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(solutions / f"{name}.ipynb", dst)
         written.append(dst)
-    (folder / "nbgrader_config.py").write_text(CONFIG.format(course_id=course_id), encoding="utf-8")
+    (folder / "nbgrader_config.py").write_text(CONFIG.format(course_id=course_id, screened=screened), encoding="utf-8")
     if not (folder / "gradebook.db").exists():
         _create_gradebook(folder, course_id)
     return written
@@ -141,10 +203,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--force", action="store_true", help="replace source notebooks that exist")
     p.add_argument("--course-id", default="masp-lite", help="nbgrader's course id (default: masp-lite)")
     p.add_argument("--solutions", default=None, help="instructor notebooks folder (default: solutions/ here)")
+    p.add_argument("--screened", choices=SCREENED, default="zero",
+                   help="what an answer refused by forgery screening gets: zero (default) or manual grading")
+    p.add_argument("--learners", default=None, metavar="DIR",
+                   help="also write the learners' copy of the course at DIR: release notebooks and the library, "
+                        "no solutions/ (run from the repository root)")
     args = parser.parse_args(argv)
     try:
         written = init(args.folder, args.chapters, solutions=args.solutions, course_id=args.course_id,
-                       force=args.force)
+                       force=args.force, screened=args.screened)
+        if args.learners:
+            bundle = learner_copy(args.learners, solutions=args.solutions)
+            print(f"wrote {bundle} (the learners' copy: notebooks/ and the library, no solutions/)")
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
