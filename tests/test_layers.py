@@ -1,6 +1,6 @@
 """The package's imports flow one way and never in a circle (read from the source with ast).
 
-Layers, lowest first: ``envs`` and ``config`` -> ``parsing`` -> ``nets`` / ``planners`` -> ``algos`` /
+Layers, lowest first: ``envs``, ``config`` and ``files`` -> ``parsing`` -> ``nets`` / ``planners`` -> ``algos`` /
 ``weights`` -> ``policies`` -> ``evaluation`` / ``training`` / ``viz`` / ``course`` -> ``reproduction``
 (the only code that knows the repository: records, paper numbers, the training plan) -> ``bench``
 (timings beside the paper's) -> ``cli``. A module
@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "masp_lite"
-LAYER = {"envs": 0, "config": 0, "parsing": 0.5, "nets": 1, "planners": 1, "algos": 2, "weights": 2, "policies": 3,
-         "evaluation": 4, "training": 5, "viz": 5, "course": 5, "reproduction": 5.5, "bench": 5.7, "cli": 6,
-         "__main__": 7, "__init__": 7}
+LAYER = {"envs": 0, "config": 0, "files": 0, "parsing": 0.5, "nets": 1, "planners": 1, "algos": 2, "weights": 2,
+         "policies": 3, "evaluation": 4, "training": 5, "viz": 5, "course": 5, "reproduction": 5.5, "bench": 5.7,
+         "cli": 6, "__main__": 7, "__init__": 7}
 
 
 def _module_name(path: Path) -> str:
