@@ -21,7 +21,7 @@ import sys
 
 import torch
 
-from ..training import checkpoint_iterations, method_config, train
+from ..training import RunWriteError, checkpoint_iterations, method_config, train
 
 __all__ = ["add_arguments", "run", "resume_command", "EXAMPLES"]
 
@@ -78,6 +78,8 @@ def _interrupted(args, out: str, cfg) -> str:
 def run(args) -> int:
     if args.threads < 1:
         raise ValueError(f"--threads: expected a positive int, got {args.threads}")
+    if args.out is not None and not args.out.strip():
+        raise ValueError("--out: expected a folder path such as runs/mpe-20, got an empty string")
     args.method, cfg, overrides = method_config(args.method, args.sets, args.scenario)
     torch.set_num_threads(args.threads)
     out = args.out or f"runs/{args.method}-{args.scenario}-seed{args.seed}"
@@ -89,6 +91,10 @@ def run(args) -> int:
     except KeyboardInterrupt:  # Ctrl-C: no traceback; say where the run stands and how to go on
         print(f"\n{_interrupted(args, out, cfg)}", file=sys.stderr)
         return 130
+    except RunWriteError as e:  # disk full, read-only: one line with the command that goes on once it can write
+        resume = resume_command(args, out) if e.last_checkpoint is not None else None
+        raise ValueError(f"{e}; once it can be written, " + (f"resume with: {resume}" if resume else
+                         "run the same command again")) from None
     ev = m["final_eval"]
     print(f"{args.method} on {m['scenario']}, final evaluation (deterministic, {ev['episodes']} episodes): "
           f"SR {ev['sr']:.3f}  Steps {ev['steps']:.2f}  CR {ev['cr']:.3f}  "
