@@ -127,7 +127,8 @@ def read_bounded(path, limit: int = MAX_READ, what: str = "file") -> bytes:
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
-        raise ValueError(f"{str(path)!r}: expected an existing {what}, found none") from None
+        link = " (a link to a missing file)" if os.path.islink(path) else ""
+        raise ValueError(f"{str(path)!r}: expected an existing {what}, found none{link}") from None
     except IsADirectoryError:
         raise ValueError(f"{str(path)!r} is a folder; expected a {what}") from None
     except OSError as e:

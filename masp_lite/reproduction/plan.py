@@ -42,6 +42,7 @@ import torch
 from ..config import TrainConfig
 from ..envs import get_scenario
 from ..evaluation import evaluate
+from ..files import read_bounded
 from ..training import method_config, train
 from ..weights import atomic_write_bytes, base_scenario, sha256, trained_preset
 from .reproduce import load_records
@@ -159,7 +160,14 @@ def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
     for path in sorted(base.rglob("*.manifest.json")):
         name = str(path.relative_to(base))[: -len(".manifest.json")]
         preset = shipped_by_history.get(str(path.relative_to(root)))
-        history = json.loads(path.read_text())
+        try:
+            history = json.loads(read_bounded(path, what="kept history"))
+        except (ValueError, RecursionError) as e:
+            skipped.append((name, f"it does not read as JSON ({e})"))
+            continue
+        if not isinstance(history, dict):
+            skipped.append((name, f"it holds a JSON {type(history).__name__}, not a kept history (an object)"))
+            continue
         if preset is None and history.get("file") != f"{Path(name).name}.pt":
             skipped.append((name, "its weights are neither kept beside it nor shipped"))
             continue
@@ -167,6 +175,9 @@ def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
             stages = _stages(history)
         except ValueError as e:
             skipped.append((name, str(e)))
+            continue
+        except (KeyError, TypeError, AttributeError, IndexError) as e:  # a field missing or of another type
+            skipped.append((name, f"its stages are malformed ({type(e).__name__}: {e})"))
             continue
         runs.append(Run(name, stages, preset is not None, history.get("note"), _records(records, root, name, preset)))
     return runs, skipped
@@ -180,16 +191,35 @@ def save_plan(runs, path) -> None:
 def load_plan(path) -> list[Run]:
     """A plan written by :func:`save_plan` (or by hand, in that form); one clear error otherwise."""
     try:
-        data = json.loads(Path(path).read_text())
+        data = json.loads(read_bounded(path, what="plan"))
         runs = [Run(**{**r, "stages": tuple(Stage(**s) for s in r["stages"]), "records": tuple(r["records"])})
                 for r in data]
         for r in runs:
             for s in r.stages:
                 TrainConfig.from_flat(s.config)
                 get_scenario(s.scenario)
-    except (OSError, ValueError, TypeError, KeyError) as e:
+        _check_plan_paths(runs)
+    except (OSError, ValueError, TypeError, KeyError, AttributeError, RecursionError) as e:
         raise ValueError(f"--plan {path}: expected a JSON list of runs as save_plan writes them ({e})") from None
     return runs
+
+
+def _check_plan_paths(runs) -> None:
+    """A plan writes only inside its root: every run name and record path relative, with no ``..``; records
+    under ``results/`` and ending ``.json``; every stage starting from random networks or an earlier stage."""
+    def inside(text, what):
+        parts = Path(str(text)).parts
+        if not isinstance(text, str) or not text or Path(text).is_absolute() or ".." in parts or "\\" in text:
+            raise ValueError(f"{what} {text!r}: expected a relative path inside the root, without '..'")
+        return parts
+    for r in runs:
+        inside(r.name, "run name")
+        for rel in r.records:
+            if inside(rel, "record")[0] != "results" or not rel.endswith(".json"):
+                raise ValueError(f"record {rel!r}: expected a results/....json path")
+        for k, s in enumerate(r.stages):
+            if s.init is not None and (not isinstance(s.init, int) or isinstance(s.init, bool) or not 0 <= s.init < k):
+                raise ValueError(f"run {r.name!r} stage {k + 1}: init {s.init!r}; expected an earlier stage's index")
 
 
 def _key(run: Run, k: int) -> str:
@@ -308,6 +338,7 @@ def run_plan(runs, root, use_ray: bool | None = None, address: str | None = None
     ``use_ray``: None uses Ray when it is installed (else the runs go in turn, and ``say``
     tells how to install it), True requires it, False runs in turn. ``address``: a running
     Ray cluster (default: a local Ray on this machine's cores)."""
+    _check_plan_paths(runs)
     root = Path(root).resolve()
     tasks = _tasks(runs)
     if use_ray is not False:
