@@ -206,6 +206,61 @@ def test_bad_env_ids_are_refused(env_ids, words):
         make("mpe-5", num_envs=4, seed=0).reset(env_ids=env_ids)
 
 
+@pytest.mark.parametrize("name", ["mpe-5", "drone-5"])
+def test_a_uint8_env_ids_tensor_is_refused_not_read_as_indices(name):
+    with pytest.raises(ValueError, match=r"torch.uint8 tensor could be a mask .* or indices"):
+        make(name, num_envs=3, seed=0).reset(env_ids=torch.tensor([1, 0, 1], dtype=torch.uint8))
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "3", True, 2**63, np.float64(2.0)])
+@pytest.mark.parametrize("name", ["mpe-5", "drone-5"])
+def test_a_seed_that_would_be_read_as_another_is_refused(name, seed, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=r"seed: expected an int from 0 to 2\*\*63 - 1"):
+        make(name, seed=seed)
+    with pytest.raises(ValueError, match=r"seed: expected an int from 0 to 2\*\*63 - 1"):
+        make(name, seed=0).reset(seed=seed)
+    with pytest.raises(ValueError, match=r"seed: expected an int from 0 to 2\*\*63 - 1"):
+        parallel_env(name).reset(seed=seed)
+    make(name, seed=np.int64(3)).reset(seed=2**63 - 1)  # numpy ints and the largest seed are fine
+
+
+@pytest.mark.parametrize("name", ["mpe-5", "drone-5"])
+def test_a_meta_device_or_more_worlds_than_memory_is_one_clear_error(name):
+    with pytest.raises(ValueError, match="device 'meta': expected 'cpu' or 'cuda'"):
+        make(name, device="meta")
+    with pytest.raises(ValueError, match=r"num_envs=1000000000: .* GiB .*expected fewer worlds"):
+        make(name, num_envs=10**9)
+
+
+@pytest.mark.parametrize("options, words", [
+    ("abc", "reset options: expected a dict"), ([1, 2], "reset options: expected a dict"),
+    ({"agent_pos": "x"}, "reset option 'agent_pos': expected real numbers"),
+    ({"agent_pos": object()}, "reset option 'agent_pos': expected real numbers, got dtype object"),
+    ({"agent_pos": np.zeros((5, 2), dtype=complex)}, "expected real numbers, got dtype complex128"),
+    ({"agent_pos": [[0, 0], [1]]}, "reset option 'agent_pos': expected an array of real numbers"),
+])
+@pytest.mark.parametrize("face", ["batched", "pettingzoo"])
+def test_reset_options_of_the_wrong_type_are_one_clear_error(face, options, words):
+    env = make("mpe-5", seed=0) if face == "batched" else parallel_env("mpe-5")
+    with pytest.raises(ValueError, match=words):
+        env.reset(seed=0, options=options)
+
+
+@pytest.mark.parametrize("action, words", [
+    (np.array([object()] * 4, dtype=object), "got dtype object"),
+    (np.zeros(4, dtype=complex), "got dtype complex128"),
+    (torch.zeros(4, dtype=torch.complex64), "got dtype complex64"),
+    ("abcd", "got dtype <U4"),
+])
+def test_object_or_complex_actions_on_the_drone_face_are_one_clear_error(action, words, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    env = parallel_env("drone-5")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=rf"step: action of 'drone_0': expected real numbers.*{words}"):
+        env.step({a: action for a in env.agents})
+
+
 # ------------------------------------------------------------------ bench command
 def test_missing_or_unknown_bench_target_is_a_clear_error(monkeypatch, capsys):
     with pytest.raises(ValueError, match="expected one of"):

@@ -160,3 +160,22 @@ def test_a_record_that_does_not_fit_on_the_disk_leaves_the_earlier_one_whole(tmp
     assert "refused: --json" in done.stdout, done.stderr
     assert json.loads(earlier.read_text()) == {"a": 1}  # the earlier record as it was, not truncated
     assert [p.name for p in tmp_path.iterdir()] == ["out.json"]  # no temporary file left behind
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seed", "-1"], "--seed: expected an int from 0 to 2**63 - 1"),
+    (["--threads", "10000"], "--threads: expected an int from 1 to"),
+    (["--threads", "0"], "--threads: expected an int from 1 to"),
+])
+def test_train_refuses_what_evaluate_refuses_before_anything_runs(argv, message, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", "--scenario", "mpe-5", "--out", str(out), "--quiet", "--set", "updates=1", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and not out.exists()
+
+
+def test_a_large_int_setting_is_read_exactly_not_through_a_float():
+    from masp_lite.training import parse_config
+    cfg, _ = parse_config(["updates=9007199254740993"])
+    assert cfg.run.updates == 9007199254740993 and isinstance(cfg.run.updates, int)
+    assert parse_config(["updates=1e3"])[0].run.updates == 1000

@@ -21,9 +21,13 @@ import sys
 
 import torch
 
+from ..envs.base import check_seed
 from ..training import RunWriteError, checkpoint_iterations, method_config, train
 
-__all__ = ["add_arguments", "run", "resume_command", "EXAMPLES"]
+__all__ = ["add_arguments", "run", "resume_command", "EXAMPLES", "MAX_THREADS"]
+
+#: The most torch threads ``--threads`` takes (or this machine's cores, when it has more).
+MAX_THREADS = 64
 
 EXAMPLES = [
     "train --method masp --scenario mpe-20 --out runs/mpe-20 --seed 0 --set lr=2e-4",
@@ -76,8 +80,10 @@ def _interrupted(args, out: str, cfg) -> str:
 
 
 def run(args) -> int:
-    if args.threads < 1:
-        raise ValueError(f"--threads: expected a positive int, got {args.threads}")
+    most = max(MAX_THREADS, os.cpu_count() or 1)
+    if not 1 <= args.threads <= most:  # thousands of threads stall the machine rather than speed anything up
+        raise ValueError(f"--threads: expected an int from 1 to {most}, got {args.threads}")
+    check_seed(args.seed, "--seed")
     if args.out is not None and not args.out.strip():
         raise ValueError("--out: expected a folder path such as runs/mpe-20, got an empty string")
     args.method, cfg, overrides = method_config(args.method, args.sets, args.scenario)

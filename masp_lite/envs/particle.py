@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .base import BatchedWorld
+from .base import BatchedWorld, check_seed, reset_options
 from .scenarios import Scenario
 
 __all__ = ["ParticleWorld", "PHYSICS", "ACTION_DIRECTIONS", "NUM_ACTIONS", "contact_force"]
@@ -85,7 +85,7 @@ class ParticleWorld(BatchedWorld):
         if seed is None:
             self._rng.seed()  # fresh entropy, leaving torch's global generator alone
         else:
-            self._rng.manual_seed(int(seed))
+            self._rng.manual_seed(check_seed(seed))
         self._dirs = torch.tensor(ACTION_DIRECTIONS, dtype=dtype, device=self.device) * PHYSICS["sensitivity"]
         eye = torch.eye(self.num_agents, dtype=torch.bool, device=self.device)
         self._not_self = ~eye
@@ -113,11 +113,11 @@ class ParticleWorld(BatchedWorld):
         says what is refused).
         """
         if seed is not None:
-            self._rng.manual_seed(int(seed))
+            self._rng.manual_seed(check_seed(seed))
         B, N, K = self.num_envs, self.num_agents, self.num_obstacles
         ids = torch.from_numpy(self._env_ids(env_ids))
         n = len(ids)
-        options = dict(options or {})
+        options = reset_options(options)
         given = {k: torch.from_numpy(v) for k, v in self._start_state(options, n).items()}
         obst, agents, lms = self._spawn(n, given)
         keep = torch.from_numpy(self._team_mask(n, options.get("keep")))
