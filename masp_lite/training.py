@@ -201,6 +201,15 @@ def _check_out(out: Path) -> None:
                          "folder, or a run folder of train (--resume continues one)")
 
 
+def _check_run_files(out: Path) -> None:
+    """Each file a run writes is a regular file or absent: a folder in its place is refused before training."""
+    for name in ("state.pt", "weights.pt", "progress.csv", "manifest.json"):
+        path = out / name
+        if path.exists() and not path.is_file():
+            raise ValueError(f"{path} is a folder or another non-file; expected the run's {name} there or nothing "
+                             "(move it away, then run again)")
+
+
 def _tensors(tree, prefix=""):
     """(name, tensor) of every floating-point tensor in a nested dict/list, names joined by '.'."""
     items = tree.items() if isinstance(tree, dict) else enumerate(tree) if isinstance(tree, (list, tuple)) else ()
@@ -352,6 +361,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         raise ValueError(f"{state_path} exists; pass --resume to continue it or choose another --out")
     if not resume:
         _check_out(out)
+    _check_run_files(out)
     kind = get_scenario(scenario).kind if isinstance(scenario, str) else scenario.kind
     base = trainer_class(kind)
     if trainer_type is not None and not (isinstance(trainer_type, type) and issubclass(trainer_type, base)):

@@ -218,6 +218,18 @@ def test_a_state_that_is_not_a_dict_or_a_folder_in_its_place_is_one_clear_error(
         train("mpe-5", _cfg(updates=3), out, progress=False, resume=True)
 
 
+@pytest.mark.parametrize("name", ["progress.csv", "manifest.json", "weights.pt"])
+def test_a_folder_where_a_run_file_belongs_is_refused_before_training(tmp_path, name):
+    out = tmp_path / "run"
+    train("mpe-5", _cfg(updates=1), out, progress=False)
+    (out / name).unlink()
+    (out / name).mkdir()
+    state = (out / "state.pt").read_bytes()
+    with pytest.raises(ValueError, match=rf"{name} is a folder or another non-file; expected the run's {name}"):
+        train("mpe-5", _cfg(updates=3), out, progress=False, resume=True)
+    assert (out / "state.pt").read_bytes() == state  # nothing trained, nothing written
+
+
 def test_resume_with_other_torch_threads_is_refused(tmp_path):
     out = tmp_path / "run"
     before = torch.get_num_threads()
