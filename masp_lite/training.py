@@ -260,7 +260,7 @@ def _take_lock(out: Path) -> Path:
 def _lock_holder(lock: Path) -> int | None:
     """The PID in a run lock if that process still runs, else ``None``."""
     try:
-        pid = int(lock.read_text().split()[0])
+        pid = int(read_bounded(lock, 64, "run lock").split()[0])
         os.kill(pid, 0)
     except PermissionError:  # it runs, as another user
         return pid

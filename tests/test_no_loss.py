@@ -385,3 +385,45 @@ def test_every_file_the_product_writes_goes_through_the_one_atomic_write():
     stray = [f"{p.relative_to(package)}:{line} {name}" for p in sorted(package.rglob("*.py")) if p.name != "files.py"
              for name, line in _writes(p) if (str(p.relative_to(package)), name) not in _OWN_WRITES]
     assert stray == [], "write these through masp_lite.files.atomic_write (or atomic_target)"
+
+
+#: Reads that do not go through :func:`masp_lite.files.read_bounded`, each with why it may not.
+_OWN_READS = {
+    ("envs/base.py", "open"): "/proc/meminfo, the machine's memory",
+    ("evaluation/evaluate.py", "open"): "/proc/meminfo, the machine's memory",
+    ("weights/__init__.py", "read_text"): "the package's own weights manifests",
+    ("cli/evaluate.py", "open"): "the first 64 bytes of an existing --json regular file (is it a record?)",
+    ("viz/meshcat3d.py", "open"): "meshcat's own viewer script, from its installed package",
+    ("course/generate.py", "read_text"): "the package's shipped learner notebooks, compared with fresh ones",
+}
+
+
+def _reads(path):
+    """(name, line) of every call in ``path`` that reads a file: ``open`` in a reading mode, ``read_text``,
+    ``read_bytes``, ``json.load``, ``nbformat.read`` and ``torch.load`` of anything but an in-memory buffer."""
+    import ast
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if not isinstance(node, ast.Call):
+            continue
+        f = node.func
+        name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
+        owner = f.value.id if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) else ""
+        mode_at = 0 if isinstance(f, ast.Attribute) and name == "open" and owner != "os" else 1
+        modes = [a.value for a in node.args[mode_at:mode_at + 1] + [k.value for k in node.keywords if k.arg == "mode"]
+                 if isinstance(a, ast.Constant) and isinstance(a.value, str)]
+        first = node.args[0] if node.args else None
+        in_memory = isinstance(first, ast.Call) and getattr(first.func, "attr", "") == "BytesIO"
+        if (name == "open" and owner != "os" and not any(set(m) & set("wax") for m in modes)) or \
+                name in ("read_text", "read_bytes") or (name == "load" and owner == "json") or \
+                (name == "read" and owner == "nbformat") or (name == "load" and owner == "torch" and not in_memory):
+            found.append((name, node.lineno))
+    return found
+
+
+def test_every_file_the_product_reads_goes_through_the_one_bounded_reader():
+    from pathlib import Path
+    package = Path(__file__).resolve().parents[1] / "masp_lite"
+    stray = [f"{p.relative_to(package)}:{line} {name}" for p in sorted(package.rglob("*.py")) if p.name != "files.py"
+             for name, line in _reads(p) if (str(p.relative_to(package)), name) not in _OWN_READS]
+    assert stray == [], "read these through masp_lite.files.read_bounded"

@@ -45,7 +45,7 @@ from nbgrader.preprocessors import (
 from nbgrader.preprocessors.base import NbGraderPreprocessor
 from nbgrader.utils import is_grade
 
-from ..files import atomic_write
+from ..files import atomic_write, read_bounded
 
 __all__ = ["generate", "generate_all", "learner_notebook", "TagGradedCells", "SOLUTIONS", "NOTEBOOKS"]
 
@@ -92,7 +92,7 @@ def generate(src: str | Path, dst: str | Path) -> Path:
         raise ValueError(f"generate: expected an existing instructor notebook (.ipynb), got {str(src)!r}")
     if dst.is_dir():
         dst = dst / src.name
-    nb = nbformat.read(src, as_version=4)
+    nb = nbformat.reads(read_bounded(src, what="instructor notebook").decode("utf-8"), as_version=4)
     learner = learner_notebook(nb)
     nbformat.validate(learner)
     text = nbformat.writes(learner)

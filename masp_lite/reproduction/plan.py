@@ -152,7 +152,7 @@ def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
     and ``(name, reason)`` for each history that cannot be replayed."""
     root = Path(root)
     base = root / "results" / "training"
-    shipped = json.loads((root / "masp_lite/weights/manifest.json").read_text()) \
+    shipped = json.loads(read_bounded(root / "masp_lite/weights/manifest.json", what="manifest")) \
         if (root / "masp_lite/weights/manifest.json").exists() else {}
     shipped_by_history = {v["history"]: k for k, v in shipped.items() if not v.get("trained_on")}
     records = load_records(root / "results")
@@ -295,7 +295,7 @@ def _train_stage(run: Run, k: int, root: Path, say) -> Path:
 
 
 def _remake(root: Path, rel: str, weights: Path, shipped: bool) -> None:
-    rec = json.loads((root / rel).read_text())
+    rec = json.loads(read_bounded(root / rel, what="record"))
     opts = dict(rec.get("method_options", {}))
     new = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
                    overrides=rec.get("overrides"), num_envs=rec.get("num_envs"),
