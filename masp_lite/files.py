@@ -91,7 +91,11 @@ def atomic_target(path):
             os.fsync(fd)
         finally:
             os.close(fd)
-        os.chmod(tmp, 0o644)
+        try:  # a replaced file keeps its permissions; a new one is readable by all, as a plain write makes it
+            mode = stat.S_IMODE(os.stat(path).st_mode)
+        except OSError:
+            mode = 0o644
+        os.chmod(tmp, mode)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
@@ -111,9 +115,7 @@ def atomic_write(path, data: bytes | str) -> Path:
     with atomic_target(path) as tmp:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
+            f.write(data)  # atomic_target syncs it to disk before the rename
     return path
 
 

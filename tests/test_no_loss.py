@@ -320,6 +320,18 @@ def test_concurrent_writers_leave_one_whole_file(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["record.json"]
 
 
+def test_an_atomic_write_keeps_a_replaced_files_permissions(tmp_path):
+    import stat
+
+    from masp_lite.files import atomic_write
+    private = tmp_path / "private.json"
+    private.write_text("{}")
+    private.chmod(0o600)
+    atomic_write(private, "{\"a\": 1}")
+    assert stat.S_IMODE(private.stat().st_mode) == 0o600 and private.read_text() == '{"a": 1}'
+    assert stat.S_IMODE(atomic_write(tmp_path / "new.json", "{}").stat().st_mode) == 0o644
+
+
 def test_the_bounded_reader_refuses_pipes_devices_folders_and_large_files(tmp_path):
     import os
 
