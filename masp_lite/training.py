@@ -400,7 +400,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
             k = next(k for k in fresh if loaded.get(k) != fresh[k])
             raise ValueError(f"{state_path}: its optimizer setting {k} is {loaded.get(k)!r}, the configuration's is "
                              f"{fresh[k]!r}; expected a training state saved by 'train' with these settings")
-        if int(state.get("threads", torch.get_num_threads())) != torch.get_num_threads():
+        if isinstance(state.get("threads"), int) and state["threads"] != torch.get_num_threads():
             raise ValueError(f"{state_path} was trained with {state['threads']} torch thread(s), now "
                              f"{torch.get_num_threads()}; resume with --threads {state['threads']} (other threads "
                              "sum in another order and give other weights)")
