@@ -18,7 +18,11 @@ wall-clock summed over every stage, and where the whole training history is kept
 (``results/training/SCENARIO-seedS.manifest.json`` in the repository: every stage's
 command, configuration, machine and curves). :func:`load_weights` refuses (one clear
 ``ValueError``) a missing, truncated or corrupt file, a file whose hash differs from the
-manifest, another architecture, or weights trained for another scenario. Scenarios with a
+manifest, another architecture, or weights trained for another scenario; and before anything
+is allocated, a file that could exhaust memory: over :data:`MAX_WEIGHTS_BYTES`, not a regular
+file, compressed entries (a deflate bomb), a tensor that claims more elements than its bytes
+(stride 0), architecture settings beyond :data:`ARCH_BOUNDS`, or tensors that are not real
+floating point (never cast). Scenarios with a
 team change, or with overrides such as ``num_agents=100``, use the weights of the preset
 they start from (``mpe-20to10`` -> ``mpe-20``): the networks are size-invariant, and
 this is the paper's zero-shot protocol. A manifest entry may also ship another preset's
