@@ -45,6 +45,7 @@ from .algos.masp_trainer import MASPTrainer
 from .config import TrainConfig
 from .envs import OVERRIDES, get_scenario, make, world_name
 from .evaluation import collision_rate, rollout, steps, success_rate
+from .evaluation.evaluate import check_memory
 from .files import TMP_PREFIX, atomic_write, read_bounded
 from .parsing import field_types, parse_sets
 from .policies import get_factory, learned_methods
@@ -367,6 +368,8 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
     if trainer_type is not None and not (isinstance(trainer_type, type) and issubclass(trainer_type, base)):
         raise ValueError(f"trainer_type: expected a subclass of {base.__name__} (the {kind} trainer), "
                          f"got {trainer_type!r}")
+    planned = get_scenario(scenario, **(overrides or {})) if isinstance(scenario, str) else scenario
+    check_memory(planned.num_agents, cfg.run.num_envs, "--set num_envs=")  # before any world or network is built
     trainer = (trainer_type or base)(scenario, cfg, seed=seed, overrides=overrides)
     wall_before, rows, started = 0.0, [], datetime.now(timezone.utc).isoformat(timespec="seconds")
     default_command = f"python -m masp_lite train --method {method} --scenario {scenario} --seed {seed}"

@@ -439,3 +439,14 @@ def test_every_file_the_product_reads_goes_through_the_one_bounded_reader():
     stray = [f"{p.relative_to(package)}:{line} {name}" for p in sorted(package.rglob("*.py")) if p.name != "files.py"
              for name, line in _reads(p) if (str(p.relative_to(package)), name) not in _OWN_READS]
     assert stray == [], "read these through masp_lite.files.read_bounded"
+
+
+def test_a_training_run_that_cannot_fit_in_memory_is_refused_with_the_estimate(tmp_path, monkeypatch):
+    import importlib
+    evaluation = importlib.import_module("masp_lite.evaluation.evaluate")  # the module, not the function
+    monkeypatch.setattr(evaluation, "_available_bytes", lambda: 2 * 2**30)  # a machine with 2 GiB free
+    out = tmp_path / "run"
+    with pytest.raises(ValueError, match=r"20 agents in 5000 worlds side by side need about 2.3 GiB .* more than "
+                                         r"the 2.0 GiB available; pass num_envs=\d+ \(--set num_envs=\d+\)"):
+        train("mpe-20", _cfg(num_envs=5000), out, progress=False)
+    assert not out.exists()
