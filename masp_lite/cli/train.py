@@ -21,7 +21,7 @@ import sys
 
 import torch
 
-from ..envs.base import check_seed
+from ..envs.checks import check_seed
 from ..training import RunWriteError, checkpoint_iterations, method_config, train
 
 __all__ = ["add_arguments", "run", "resume_command", "EXAMPLES", "MAX_THREADS"]

@@ -12,65 +12,15 @@ are exactly those it drew before this base existed.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
-
 import numpy as np
 import torch
 
 from .scenarios import Scenario, get_scenario
 
-__all__ = ["BatchedWorld", "MAX_TRIES", "check_seed", "reset_options", "real_array", "WORLD_PAIR_BYTES"]
+__all__ = ["BatchedWorld", "MAX_TRIES"]
 
 MAX_TRIES = 10_000
 """Rejection-sampling draws per body before a spawn is declared impossible."""
-WORLD_PAIR_BYTES = 64
-"""The world's own memory per agent pair and world (distances, contacts, masks), roughly: its N^2 part."""
-
-
-def check_seed(seed, what: str = "seed") -> int | None:
-    """``seed`` as an int in [0, 2**63 - 1] (``None`` stays ``None``); else one ValueError.
-
-    A negative seed would wrap (``-1`` is ``2**64 - 1`` to torch), ``1.5`` would act as 1 and
-    ``"3"`` as 3: each is refused rather than read as another seed."""
-    if seed is None:
-        return None
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2 ** 63:
-        raise ValueError(f"{what}: expected an int from 0 to 2**63 - 1 (or None), got {seed!r}")
-    return int(seed)
-
-
-def reset_options(options) -> dict:
-    """``reset``'s ``options`` as a dict (``None`` is none); anything but a mapping is one clear error."""
-    if options is None:
-        return {}
-    if not isinstance(options, Mapping):
-        raise ValueError(f"reset options: expected a dict such as {{'agent_pos': ...}} or None, got a "
-                         f"{type(options).__name__}")
-    return dict(options)
-
-
-def real_array(value, what: str) -> np.ndarray:
-    """``value`` (array, tensor or nested list) as float64 when it holds real numbers; else one ValueError naming
-    ``what`` (complex numbers would lose their imaginary part, objects and strings are no numbers at all)."""
-    try:
-        a = np.asarray(value.detach().cpu().numpy() if torch.is_tensor(value) else value)
-    except (ValueError, TypeError, RuntimeError) as e:
-        raise ValueError(f"{what}: expected an array of real numbers ({e})") from None
-    if a.dtype.kind not in "iuf":
-        raise ValueError(f"{what}: expected real numbers, got dtype {a.dtype}")
-    return a.astype(np.float64)
-
-
-def _available_bytes() -> int | None:
-    """Memory this machine can still give (``MemAvailable`` of /proc/meminfo), ``None`` where unknown."""
-    try:
-        with open("/proc/meminfo", "rb") as f:
-            for line in f.read(1 << 16).decode().splitlines():
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return None
 
 
 class BatchedWorld:
@@ -98,11 +48,8 @@ class BatchedWorld:
             raise ValueError(f"device: expected a torch device such as 'cpu' or 'cuda', got {device!r}") from e
         if self.device.type not in ("cpu", "cuda"):  # 'meta' holds no numbers; others are untested
             raise ValueError(f"device {str(device)!r}: expected 'cpu' or 'cuda' (a world computes real numbers)")
-        need, have = WORLD_PAIR_BYTES * int(num_envs) * sc.num_agents ** 2, _available_bytes()
-        if have is not None and need > have:
-            raise ValueError(f"num_envs={num_envs}: {num_envs} worlds of {sc.num_agents} agents need about "
-                             f"{need / 2 ** 30:.1f} GiB (~{WORLD_PAIR_BYTES} bytes per agent pair and world), more "
-                             f"than the {have / 2 ** 30:.1f} GiB available; expected fewer worlds")
+        from .checks import check_world_memory
+        check_world_memory(num_envs, sc.num_agents)
         if self.device.type == "cuda" and not torch.cuda.is_available():
             why = "this torch build has no CUDA" if torch.version.cuda is None else "no CUDA device is visible"
             raise ValueError(f"device {str(device)!r}: {why} (torch {torch.__version__}); expected 'cpu'")

@@ -69,7 +69,8 @@ import mujoco.batch
 import numpy as np
 import torch
 
-from .base import BatchedWorld, check_seed, reset_options
+from .base import BatchedWorld
+from .checks import check_seed, reset_options
 from .drone_model import ARM_LENGTH, COLLISION_RADIUS, HOVER_COMMAND, HUMMINGBIRD, MAX_THRUST, SUBSTEPS, build_xml
 from .scenarios import Scenario
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .base import real_array
+from .checks import real_array
 
 __all__ = ["start_state", "bounds_text", "check_particle_start"]
 

@@ -6,7 +6,7 @@ import warnings
 
 from pettingzoo import ParallelEnv
 
-from ..base import reset_options
+from ..checks import reset_options
 
 __all__ = ["WorldParallelEnv"]
 

@@ -42,7 +42,7 @@ import gymnasium
 import numpy as np
 import torch
 
-from ..base import real_array
+from ..checks import real_array
 from ..drones import DroneWorld
 from ..scenarios import Scenario
 from .base import WorldParallelEnv
