@@ -110,6 +110,8 @@ def _run_recipe(args) -> int:
     except KeyboardInterrupt:
         print(f"\ninterrupted; run the same command again to resume recipe {recipe.name} in {out}", file=sys.stderr)
         return 130
+    except RunWriteError as e:  # disk full, read-only: the same command goes on once it can write
+        raise ValueError(f"{e}; once it can be written, run the same command again") from None
     ev = m["final_eval"]
     print(f"recipe {recipe.name}, last stage on {m['scenario']}: SR {ev['sr']:.3f}  Steps {ev['steps']:.2f}  "
           f"CR {ev['cr']:.3f} -> {out}")
