@@ -193,7 +193,7 @@ def test_malformed_kept_histories_are_named_and_their_runs_planned_untimed(tmp_p
     base = tmp_path / "results" / "training" / "mappo"
     base.mkdir(parents=True)
     for name, text in {"mpe-5-seed0": '{"file": "a-seed0.pt"}', "mpe-20-seed0": '{"stages": 5}',
-                       "mpe-50-seed0": '{"stages": [{"scenario": "mpe-50"}]}', "x-seed0": "[]"}.items():
+                       "mpe-50-seed0": '{"stages": [{"scenario": "mpe-50"}]}', "x-seed0": "{}"}.items():
         (base / f"{name}.manifest.json").write_text(text)
     runs, skipped = read_plan(tmp_path)
     why = dict(skipped)
