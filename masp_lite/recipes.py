@@ -22,6 +22,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .files import read_bounded
 from .training import method_config, train
 
 __all__ = ["Stage", "Recipe", "RECIPES", "FROM_SCRATCH", "get_recipe", "recipe_names", "stage_config",
@@ -214,7 +215,7 @@ def run_recipe(recipe: Recipe, seed: int, out, stage: str | None = None, init=No
         folder = out / s.name
         if (folder / "manifest.json").exists():
             say(f"{recipe.name}: stage {s.name} is done ({folder})")
-            manifest = json.loads((folder / "manifest.json").read_text())
+            manifest = json.loads(read_bounded(folder / "manifest.json", what="run manifest"))
             continue
         start = init if stage is not None and init is not None else None
         if start is None and s.start is not None:

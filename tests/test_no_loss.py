@@ -405,6 +405,7 @@ def test_every_file_the_product_writes_goes_through_the_one_atomic_write():
 #: Reads that do not go through :func:`masp_lite.files.read_bounded`, each with why it may not.
 _OWN_READS = {
     ("envs/checks.py", "open"): "/proc/meminfo, the machine's memory",
+    ("bench/competing.py", "open"): "/proc/stat, how busy the machine's CPUs are",
     ("evaluation/evaluate.py", "open"): "/proc/meminfo, the machine's memory",
     ("weights/__init__.py", "read_text"): "the package's own weights manifests",
     ("cli/evaluate.py", "open"): "the first 64 bytes of an existing --json regular file (is it a record?)",

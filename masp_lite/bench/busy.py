@@ -101,7 +101,8 @@ def _decide_loop():
 
 def _train_loop(worlds: int):
     from ..algos.masp_trainer import MASPTrainer
-    from ..config import FROM_SCRATCH, TrainConfig
+    from ..config import TrainConfig
+    from ..recipes import FROM_SCRATCH
     from .train import METHODS
     trainer = MASPTrainer("mpe-20", TrainConfig.from_flat({**FROM_SCRATCH, **METHODS["masp"], "num_envs": worlds}),
                           seed=0)

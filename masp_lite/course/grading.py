@@ -49,6 +49,7 @@ from nbgrader.preprocessors.base import NbGraderPreprocessor
 from nbgrader.utils import is_grade, is_solution
 from traitlets import Enum
 
+from ..files import read_bounded
 from .checking import REVEAL_MARK
 
 __all__ = ["screen", "UseReleaseCells", "ReportGrading", "RecordGrading", "ExportWithNotes", "NOTE", "META"]
@@ -268,7 +269,7 @@ class UseReleaseCells(NbGraderPreprocessor):
         if not os.path.isfile(path):
             raise FileNotFoundError(f"UseReleaseCells: the release {path} is missing: run nbgrader "
                                     f"generate_assignment {info['assignment']} first")
-        return nbformat.read(path, as_version=4)
+        return nbformat.reads(read_bounded(path, what="release notebook").decode(), as_version=4)
 
     def preprocess(self, nb, resources):
         release = self._release(resources)
