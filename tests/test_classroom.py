@@ -75,6 +75,23 @@ def test_init_writes_an_nbgrader_course_folder(tmp_path):
     assert classroom.main(["init", str(tmp_path / "third"), "nope"]) == 2
 
 
+def test_init_never_replaces_an_instructors_file_and_either_finishes_or_changes_nothing(tmp_path):
+    course = tmp_path / "course"
+    classroom.init(course, ["02"], solutions=ROOT / "solutions")
+    cfg = course / "nbgrader_config.py"
+    edited = cfg.read_text() + "c.Exchange.timezone = 'UTC'  # the instructor's own line\n"
+    cfg.write_text(edited)
+    before = {p: p.read_bytes() for p in course.rglob("*") if p.is_file()}
+    with pytest.raises(ValueError, match="nbgrader_config.py exist.*nothing was written"):
+        classroom.init(course, ["03"], solutions=ROOT / "solutions")   # a new chapter, an edited config
+    with pytest.raises(ValueError, match="02_goal_assignment.ipynb.*nothing was written"):
+        classroom.init(course, ["03", "02"], solutions=ROOT / "solutions")
+    assert {p: p.read_bytes() for p in course.rglob("*") if p.is_file()} == before  # not even chapter 03
+    cfg.write_text(classroom.CONFIG.format(course_id="masp-lite", screened="zero"))
+    assert [p.parent.name for p in classroom.init(course, ["03"], solutions=ROOT / "solutions")] \
+        == ["03_graph_encoders"]  # an unchanged config is no instructor's edit
+
+
 def test_init_builds_the_learners_copy_without_solutions(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "masp_lite.course.classroom", "init", str(tmp_path / "course"),
                            "02", "--learners", str(tmp_path / "learners")], cwd=ROOT, capture_output=True, text=True,

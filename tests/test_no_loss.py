@@ -353,7 +353,6 @@ def test_the_bounded_reader_refuses_pipes_devices_folders_and_large_files(tmp_pa
 _OWN_WRITES = {
     ("training.py", "fdopen"): "the run lock: created with O_EXCL, its creation is the lock",
     ("cli/evaluate.py", "write_bytes"): "an empty probe file that tells whether a folder can be written",
-    ("course/classroom.py", "write_text"): "classroom init, reworked under its own issue",
 }
 
 

@@ -49,6 +49,7 @@ import shutil
 import sys
 from pathlib import Path
 
+from ..files import atomic_write, read_bounded
 from .generate import SOLUTIONS
 
 __all__ = ["init", "chapters", "learner_copy", "CONFIG", "LEARNER_FILES", "SCREENED"]
@@ -179,18 +180,24 @@ def init(folder: str | Path, names: list[str] | None = None, *, solutions: str |
             raise ValueError(f"init: unknown chapter {name!r}; expected one of {available}")
         picked.append(match[0])
     folder = Path(folder).resolve()
-    written = []
-    for name in picked:
-        dst = folder / "source" / name / f"{name}.ipynb"
-        if dst.exists() and not force:
-            raise ValueError(f"init: {dst} exists (pass --force to replace it)")
+    config = CONFIG.format(course_id=course_id, screened=screened).encode()
+    targets = {folder / "source" / name / f"{name}.ipynb": solutions / f"{name}.ipynb" for name in picked}
+    # every file an instructor may have edited is checked before anything is written: init either finishes
+    # or changes nothing
+    taken = [dst for dst in targets if dst.exists()]
+    cfg = folder / "nbgrader_config.py"
+    if cfg.exists() and read_bounded(cfg, what="course configuration") != config:
+        taken.append(cfg)
+    if taken and not force:
+        raise ValueError(f"init: {', '.join(map(str, taken))} exist(s) and would be replaced; nothing was written "
+                         "(pass --force to replace them)")
+    for dst, src in targets.items():
         dst.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(solutions / f"{name}.ipynb", dst)
-        written.append(dst)
-    (folder / "nbgrader_config.py").write_text(CONFIG.format(course_id=course_id, screened=screened), encoding="utf-8")
+        atomic_write(dst, read_bounded(src, what="instructor notebook"))
+    atomic_write(cfg, config)
     if not (folder / "gradebook.db").exists():
         _create_gradebook(folder, course_id)
-    return written
+    return list(targets)
 
 
 def main(argv: list[str] | None = None) -> int:
