@@ -172,6 +172,32 @@ def test_plot_progress_draws_training_evaluation_and_baseline(tmp_path):
     plt.close(fig)
 
 
+def test_progress_key_sits_under_the_panels_not_over_the_curves(tmp_path):
+    """The key of SR / Steps / CR is one figure legend below every panel: inside the SR panel it
+    covered the evaluation points and the baseline of a curve that sits near SR 1."""
+    import matplotlib.pyplot as plt
+
+    from masp_lite.viz.progress import plot_progress
+    n = 40
+    cols = {k: np.full(n, v) for k, v in (("train_sr", 0.98), ("train_steps", 20.0), ("train_cr", 0.1),
+                                          ("gm_reward", -1.0), ("cae_reward", -5.0))}
+    cols.update(env_steps=1000.0 * np.arange(1, n + 1), eval_sr=np.where(np.arange(n) % 5 == 4, 1.0, np.nan),
+                eval_steps=np.where(np.arange(n) % 5 == 4, 18.0, np.nan),
+                eval_cr=np.where(np.arange(n) % 5 == 4, 0.1, np.nan))
+    fig = plot_progress(cols, "a stage", baseline={"sr": 0.99, "steps": 19.0, "cr": 0.2})
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    assert all(ax.get_legend() is None for ax in fig.axes[:3])
+    (key,) = fig.legends
+    assert [t.get_text() for t in key.get_texts()] == ["training rollouts (sampled)", "evaluation (deterministic)",
+                                                       "h-greedy"]
+    box = key.get_window_extent(renderer)
+    for ax in fig.axes:
+        panel = ax.get_tightbbox(renderer)                  # the panel with its tick labels and axis label
+        assert box.y1 <= panel.y0 + 1, f"the key overlaps panel {ax.get_title()!r}"
+    plt.close(fig)
+
+
 def test_training_history_of_the_shipped_weights(tmp_path):
     from masp_lite.reproduction.histories import training_history
     from masp_lite.viz.progress import last_evaluation, read_progress

@@ -140,6 +140,7 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
     ``baseline`` (``{"sr", "steps", "cr"}`` means, e.g. h-greedy's) adds a dashed line,
     labelled ``baseline_label``, to each. A fourth panel shows the mean rewards of both
     levels, R_GM (eq. 1) and R_CAE (eq. 5). Call ``plt.show()`` (or let the notebook show it).
+    The three metric panels share one key, under them, so that it never hides a curve.
     The step axes carry at most five ticks in thousands / millions (``50k``, ``1.2M``), so
     their labels never run into each other on the narrow panels.
     """
@@ -156,7 +157,9 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
         if baseline is not None and baseline.get(key) is not None:
             ax.axhline(baseline[key], color="k", ls="--", lw=1, label=baseline_label)
         ax.set(title=label, xlabel="environment steps")
-    axes[0].legend(fontsize=8)
+    # one key for the three metric panels, under them: inside a panel it covered the evaluation
+    # points and the baseline (an SR curve near 1 fills the top of its panel, the bottom of Steps')
+    handles, labels = axes[0].get_legend_handles_labels()
     axes[3].plot(x, columns["gm_reward"], label="R_GM (eq. 1)")
     axes[3].plot(x, columns["cae_reward"], label="R_CAE (eq. 5)")
     axes[3].set(title="mean rewards", xlabel="environment steps")
@@ -165,7 +168,9 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
         ax.xaxis.set_major_locator(MaxNLocator(nbins=4, integer=True))
         ax.xaxis.set_major_formatter(EngFormatter(sep=""))
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.09, 1, 1))
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False,
+               bbox_to_anchor=(0.38, 0.0))
     return fig
 
 
