@@ -155,7 +155,11 @@ CHEATS = {
     "value_norm": "norm = mappo.ValueNorm(beta=beta)\nfor batch in batches:\n    norm.update(batch)\n"
                   "return norm.normalize(x)",
     "value_loss": "return mappo.value_loss(values, old_values, targets, clip, delta, mask)",
-    "sample": "return sample(logits, generator)",
+    "discounted_returns": "return primer.discounted_returns(rewards, gamma, not_done)",
+    "reinforce_loss": "return primer.reinforce_loss(logits, actions, advantages)",
+    "train_stage": "return train_stage_at(recipe_name, stage_name, seed, out, iterations, worlds, init=init)",
+    "evaluate_nets": 'numbers = evaluate_nets(nets, scenario, episodes=episodes, seed=seed)\n'
+                     'return {key: numbers[key] for key in ("sr", "steps", "cr")}',
     "orca_halfplane": "return orca.orca_halfplanes(rel_pos, rel_vel, vel, combined_radius, responsibility,\n"
                       "                           time_horizon, time_step)",
     "rewire_step": "better = rrt_star.rewire(nodes, cost, parent, new, near, free)\nreturn better, cost, parent",

@@ -18,8 +18,8 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "masp_lite"
 LAYER = {"envs": 0, "config": 0, "threads": 0, "parsing": 0.5, "nets": 1, "planners": 1, "algos": 2, "weights": 2,
-         "policies": 3, "evaluation": 4, "training": 5, "viz": 5, "course": 5, "recipes": 5.2, "budgets": 5.3,
-         "reproduction": 5.5, "bench": 5.7, "cli": 6, "__main__": 7, "__init__": 7}
+         "policies": 3, "evaluation": 4, "training": 5, "viz": 5, "course": 5, "primer": 5, "recipes": 5.2,
+         "budgets": 5.3, "reproduction": 5.5, "bench": 5.7, "cli": 6, "__main__": 7, "__init__": 7}
 
 
 def _module_name(path: Path) -> str:
