@@ -133,7 +133,7 @@ CHEATS = {
     "quick_evaluate": 'record = ev.evaluate(method, scenario, episodes=episodes, seeds=(seed,))\n'
                       'return record["sr"]["mean"], record["steps"]["mean"], record["cr"]["mean"]',
     "physics_step": 'w = make("mpe-5", num_envs=pos.shape[0], num_agents=pos.shape[1], num_obstacles=0,\n'
-                    '         world_size=20.0, seed=0, **MPE2_WORLD)\n'
+                    '         world_size=20.0, seed=0, integration=integration)\n'
                     'w.reset(options={"agent_pos": pos, "agent_vel": vel})\n'
                     'obs, _ = w.step(actions)\n'
                     'return obs["agent_pos"], obs["agent_vel"]',
