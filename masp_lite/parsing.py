@@ -62,6 +62,10 @@ def parse_value(text: str, typ=None):
         return text.lower() == "true"
     if typ is int:
         try:
+            return int(text)  # exact, however large: 9007199254740993 is not rounded through a float
+        except ValueError:
+            pass
+        try:
             f = float(text)
         except ValueError:
             raise ValueError(f"expected an int, got {text!r}") from None

@@ -45,17 +45,32 @@ from .algos.masp_trainer import MASPTrainer
 from .config import TrainConfig
 from .envs import OVERRIDES, get_scenario, make, world_name
 from .evaluation import collision_rate, rollout, steps, success_rate
+from .evaluation.evaluate import check_memory
+from .files import TMP_PREFIX, atomic_write, read_bounded
 from .parsing import field_types, parse_sets
 from .policies import get_factory, learned_methods
-from .weights import atomic_write_bytes, load_weights, save_weights, sha256, trained_world
+from .weights import load_weights, save_weights, sha256, trained_world
 
 __all__ = ["train", "parse_config", "method_config", "evaluate_nets", "checkpoint_iterations", "trainer_class",
-           "CSV_FIELDS", "EVAL_SEED"]
+           "CSV_FIELDS", "EVAL_SEED", "RunWriteError", "RUN_MARK"]
 
 CSV_FIELDS = ["iteration", "env_steps", "wall_s", "train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward",
               "gm_policy_loss", "gm_value_loss", "gm_entropy", "cae_policy_loss", "cae_value_loss", "cae_entropy",
               "eval_sr", "eval_steps", "eval_cr"]
 EVAL_SEED = 12_345
+#: The empty file that marks a folder as a run of :func:`train`: a fresh run writes only into a new or
+#: empty folder, or one holding this mark (its own earlier run, stopped before its first checkpoint).
+RUN_MARK = ".masp-run"
+#: The largest training state read (a run's state.pt is well under a megabyte for the paper's networks).
+MAX_STATE_BYTES = 256 * 2**20
+
+
+class RunWriteError(ValueError):
+    """The run folder could not be written during training (disk full, read-only): the last checkpoint is whole.
+
+    ``last_checkpoint``: the iterations in that checkpoint, ``None`` when none was written yet."""
+
+    last_checkpoint: int | None = None
 
 
 def method_config(method: str | None, sets=(), scenario: str | None = None) -> tuple[str, TrainConfig, dict]:
@@ -127,20 +142,73 @@ def evaluate_nets(nets, scenario, overrides=None, episodes: int = 32, seed: int 
 def _save_state(path: Path, state: dict) -> None:
     buf = io.BytesIO()
     torch.save(state, buf)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_write(path, buf.getvalue())
 
 
 def _load_state(path: Path) -> dict:
+    data = read_bounded(path, MAX_STATE_BYTES, "training state")
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
+        state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     except Exception as e:
         raise ValueError(f"{path}: expected a training state saved by 'train', could not read it "
                          f"({type(e).__name__})") from None
+    _check_state_fields(path, state)
     try:
         _check_finite(_tensors(state), "value")
     except NonFiniteError as e:
         raise ValueError(f"{path}: expected a training state with finite values; {e}") from None
     return state
+
+
+#: The fields of a training state that are read before the trainer loads it, with their types.
+_STATE_FIELDS = {"nets": dict, "gm_opt": dict, "cae_opt": dict, "gm_norm": dict, "cae_norm": dict,
+                 "generator": torch.Tensor, "iterations": int, "env_steps": int, "config": dict, "seed": int,
+                 "wall_s": (int, float), "started": str}
+
+
+def _check_state_fields(path: Path, state) -> None:
+    """One clear error naming the field of a training state that is missing, mistyped or negative."""
+    if not isinstance(state, dict):
+        raise ValueError(f"{path}: expected a training state (a dict) saved by 'train', got a {type(state).__name__}")
+    for key, typ in _STATE_FIELDS.items():
+        v = state.get(key)
+        if key not in state or not isinstance(v, typ) or isinstance(v, bool):
+            got = "missing" if key not in state else f"a {type(v).__name__}"
+            raise ValueError(f"{path}: field {key!r} is {got}; expected a training state saved by 'train'")
+    for key in ("iterations", "env_steps", "seed", "wall_s"):
+        if state[key] < 0 or (key == "wall_s" and not float(state[key]) < float("inf")):
+            raise ValueError(f"{path}: field {key!r} is {state[key]!r}; expected a count >= 0")
+    for key in ("overrides",):
+        if not isinstance(state.get(key, {}), dict):
+            raise ValueError(f"{path}: field {key!r} is a {type(state[key]).__name__}; expected a dict")
+
+
+def _optimizer_settings(trainer) -> dict:
+    """``{"OPTIMIZER.GROUP.SETTING": value}`` of the settings that shape each step (learning rate, betas, eps,
+    weight decay): a state keeps its own, so one whose optimizer says ``lr`` 10 would train on with it."""
+    return {f"{name}.{i}.{k}": g[k] for name, opt in vars(trainer).items() if isinstance(opt, torch.optim.Optimizer)
+            for i, g in enumerate(opt.param_groups) for k in ("lr", "betas", "eps", "weight_decay") if k in g}
+
+
+def _check_out(out: Path) -> None:
+    """A fresh run writes into a new or empty folder, or its own earlier run (:data:`RUN_MARK`); never
+    into a folder of other files (a user's manifest, a shipped weights folder), which it would replace."""
+    if not out.is_dir() or (out / RUN_MARK).exists():
+        return
+    others = sorted(p.name for p in out.iterdir() if p.name != ".lock" and not p.name.startswith(TMP_PREFIX))
+    if others:
+        raise ValueError(f"--out {out}: the folder holds other files ({', '.join(others[:5])}"
+                         f"{', ...' if len(others) > 5 else ''}) that a run would replace; expected a new or empty "
+                         "folder, or a run folder of train (--resume continues one)")
+
+
+def _check_run_files(out: Path) -> None:
+    """Each file a run writes is a regular file or absent: a folder in its place is refused before training."""
+    for name in ("state.pt", "weights.pt", "progress.csv", "manifest.json"):
+        path = out / name
+        if path.exists() and not path.is_file():
+            raise ValueError(f"{path} is a folder or another non-file; expected the run's {name} there or nothing "
+                             "(move it away, then run again)")
 
 
 def _tensors(tree, prefix=""):
@@ -193,7 +261,7 @@ def _take_lock(out: Path) -> Path:
 def _lock_holder(lock: Path) -> int | None:
     """The PID in a run lock if that process still runs, else ``None``."""
     try:
-        pid = int(lock.read_text().split()[0])
+        pid = int(read_bounded(lock, 64, "run lock").split()[0])
         os.kill(pid, 0)
     except PermissionError:  # it runs, as another user
         return pid
@@ -207,12 +275,30 @@ def _release_lock(lock: Path) -> None:
         lock.unlink(missing_ok=True)
 
 
+def _write(out: Path, state_path: Path, trainer, write) -> None:
+    """Run ``write()``; a full disk or a read-only folder becomes one :class:`RunWriteError` naming the folder
+    and the last whole checkpoint (every file is written atomically, so the one before stays intact)."""
+    try:
+        write()
+    except OSError as e:
+        try:
+            last = checkpoint_iterations(out)
+        except ValueError:
+            last = None
+        kept = f"the last checkpoint ({state_path}, iteration {last}) is intact" if last is not None \
+            else "no checkpoint was written yet"
+        err = RunWriteError(f"training stopped at iteration {trainer.iterations}: could not write the run folder "
+                            f"{out} ({e.strerror or type(e).__name__}); {kept}")
+        err.last_checkpoint = last
+        raise err from None
+
+
 def _write_csv(path: Path, rows: list[dict]) -> None:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=CSV_FIELDS, extrasaction="ignore")
     w.writeheader()
     w.writerows(rows)
-    atomic_write_bytes(path, buf.getvalue().encode())
+    atomic_write(path, buf.getvalue())
 
 
 def _read_csv(path: Path, upto: int) -> list[dict]:
@@ -223,8 +309,8 @@ def _read_csv(path: Path, upto: int) -> list[dict]:
     if not path.exists():
         raise ValueError(f"{what}; the file is missing (resuming would lose the curve)")
     try:
-        with open(path, newline="") as f:
-            rows = [r for r in csv.DictReader(f) if int(r["iteration"]) <= upto]
+        text = read_bounded(path, MAX_STATE_BYTES, "training history").decode()
+        rows = [r for r in csv.DictReader(io.StringIO(text, newline="")) if int(r["iteration"]) <= upto]
     except (KeyError, ValueError, TypeError, UnicodeDecodeError, csv.Error) as e:
         raise ValueError(f"{what}; could not read it ({type(e).__name__}: {e})") from None
     if [int(r["iteration"]) for r in rows] != list(range(1, upto + 1)):
@@ -274,11 +360,16 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         raise ValueError(f"--resume: expected a training state at {state_path}, found none")
     if not resume and state_path.exists():
         raise ValueError(f"{state_path} exists; pass --resume to continue it or choose another --out")
+    if not resume:
+        _check_out(out)
+    _check_run_files(out)
     kind = get_scenario(scenario).kind if isinstance(scenario, str) else scenario.kind
     base = trainer_class(kind)
     if trainer_type is not None and not (isinstance(trainer_type, type) and issubclass(trainer_type, base)):
         raise ValueError(f"trainer_type: expected a subclass of {base.__name__} (the {kind} trainer), "
                          f"got {trainer_type!r}")
+    planned = get_scenario(scenario, **(overrides or {})) if isinstance(scenario, str) else scenario
+    check_memory(planned.num_agents, cfg.run.num_envs, "--set num_envs=")  # before any world or network is built
     trainer = (trainer_type or base)(scenario, cfg, seed=seed, overrides=overrides)
     wall_before, rows, started = 0.0, [], datetime.now(timezone.utc).isoformat(timespec="seconds")
     default_command = f"python -m masp_lite train --method {method} --scenario {scenario} --seed {seed}"
@@ -300,7 +391,22 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         if cfg.run.updates < int(state["iterations"]):
             raise ValueError(f"--set updates={cfg.run.updates}: expected at least the {state['iterations']} iterations "
                              f"already done in {state_path} (updates={state['iterations']} ends the run there)")
-        trainer.load_state_dict(state)
+        fresh = _optimizer_settings(trainer)
+        try:
+            trainer.load_state_dict(state)
+        except (KeyError, TypeError, ValueError, RuntimeError, IndexError) as e:
+            raise ValueError(f"{state_path}: expected a training state of these networks, could not load it "
+                             f"({type(e).__name__}: {str(e).splitlines()[0][:200] if str(e) else 'no message'})") \
+                from None
+        loaded = _optimizer_settings(trainer)
+        if loaded != fresh:
+            k = next(k for k in fresh if loaded.get(k) != fresh[k])
+            raise ValueError(f"{state_path}: its optimizer setting {k} is {loaded.get(k)!r}, the configuration's is "
+                             f"{fresh[k]!r}; expected a training state saved by 'train' with these settings")
+        if isinstance(state.get("threads"), int) and state["threads"] != torch.get_num_threads():
+            raise ValueError(f"{state_path} was trained with {state['threads']} torch thread(s), now "
+                             f"{torch.get_num_threads()}; resume with --threads {state['threads']} (other threads "
+                             "sum in another order and give other weights)")
         wall_before, started = float(state["wall_s"]), state["started"]
         first_command = state.get("command")
         init = state.get("init") or init
@@ -322,6 +428,7 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         trainer.nets.load_state_dict(nets.state_dict())
     lock = _take_lock(out)
     try:
+        _write(out, state_path, trainer, lambda: atomic_write(out / RUN_MARK, b""))
         t0 = time.perf_counter()
         wall = lambda: wall_before + time.perf_counter() - t0  # noqa: E731
         sc = trainer.world.scenario.name
@@ -329,11 +436,13 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
         def save():  # state.pt last: a run stopped between the three files resumes from the previous state
             st = trainer.state_dict()
             st.update(scenario=sc, overrides=dict(overrides or {}), wall_s=wall(), started=started,
-                      command=first_command or command or default_command, init=str(init) if init is not None else "")
-            _write_csv(out / "progress.csv", rows)
-            (out / "manifest.json").unlink(missing_ok=True)  # a finished run's, resumed: its weights hash goes stale
-            save_weights(out / "weights.pt", trainer.nets, trainer.world.scenario)
-            _save_state(state_path, st)
+                      command=first_command or command or default_command, init=str(init) if init is not None else "",
+                      threads=torch.get_num_threads())
+            _write(out, state_path, trainer, lambda: (
+                _write_csv(out / "progress.csv", rows),
+                (out / "manifest.json").unlink(missing_ok=True),  # a finished run's, resumed: its hash goes stale
+                save_weights(out / "weights.pt", trainer.nets, trainer.world.scenario),
+                _save_state(state_path, st)))
 
         bar = None
         if progress:
@@ -380,7 +489,8 @@ def train(scenario: str, cfg: TrainConfig, out, seed: int = 0, resume: bool = Fa
             "final_eval": {"episodes": cfg.run.eval_episodes, "seed": EVAL_SEED, **final},
             "weights_sha256": sha256(out / "weights.pt"),
         }
-        atomic_write_bytes(out / "manifest.json", (json.dumps(manifest, indent=2) + "\n").encode())
+        text = json.dumps(manifest, indent=2) + "\n"
+        _write(out, state_path, trainer, lambda: atomic_write(out / "manifest.json", text))
         return manifest
     finally:
         _release_lock(lock)

@@ -206,6 +206,61 @@ def test_bad_env_ids_are_refused(env_ids, words):
         make("mpe-5", num_envs=4, seed=0).reset(env_ids=env_ids)
 
 
+@pytest.mark.parametrize("name", ["mpe-5", "drone-5"])
+def test_a_uint8_env_ids_tensor_is_refused_not_read_as_indices(name):
+    with pytest.raises(ValueError, match=r"torch.uint8 tensor could be a mask .* or indices"):
+        make(name, num_envs=3, seed=0).reset(env_ids=torch.tensor([1, 0, 1], dtype=torch.uint8))
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "3", True, 2**63, np.float64(2.0)])
+@pytest.mark.parametrize("name", ["mpe-5", "drone-5"])
+def test_a_seed_that_would_be_read_as_another_is_refused(name, seed, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=r"seed: expected an int from 0 to 2\*\*63 - 1"):
+        make(name, seed=seed)
+    with pytest.raises(ValueError, match=r"seed: expected an int from 0 to 2\*\*63 - 1"):
+        make(name, seed=0).reset(seed=seed)
+    with pytest.raises(ValueError, match=r"seed: expected an int from 0 to 2\*\*63 - 1"):
+        parallel_env(name).reset(seed=seed)
+    make(name, seed=np.int64(3)).reset(seed=2**63 - 1)  # numpy ints and the largest seed are fine
+
+
+@pytest.mark.parametrize("name", ["mpe-5", "drone-5"])
+def test_a_meta_device_or_more_worlds_than_memory_is_one_clear_error(name):
+    with pytest.raises(ValueError, match="device 'meta': expected 'cpu' or 'cuda'"):
+        make(name, device="meta")
+    with pytest.raises(ValueError, match=r"num_envs=1000000000: .* GiB .*expected fewer worlds"):
+        make(name, num_envs=10**9)
+
+
+@pytest.mark.parametrize("options, words", [
+    ("abc", "reset options: expected a dict"), ([1, 2], "reset options: expected a dict"),
+    ({"agent_pos": "x"}, "reset option 'agent_pos': expected real numbers"),
+    ({"agent_pos": object()}, "reset option 'agent_pos': expected real numbers, got dtype object"),
+    ({"agent_pos": np.zeros((5, 2), dtype=complex)}, "expected real numbers, got dtype complex128"),
+    ({"agent_pos": [[0, 0], [1]]}, "reset option 'agent_pos': expected an array of real numbers"),
+])
+@pytest.mark.parametrize("face", ["batched", "pettingzoo"])
+def test_reset_options_of_the_wrong_type_are_one_clear_error(face, options, words):
+    env = make("mpe-5", seed=0) if face == "batched" else parallel_env("mpe-5")
+    with pytest.raises(ValueError, match=words):
+        env.reset(seed=0, options=options)
+
+
+@pytest.mark.parametrize("action, words", [
+    (np.array([object()] * 4, dtype=object), "got dtype object"),
+    (np.zeros(4, dtype=complex), "got dtype complex128"),
+    (torch.zeros(4, dtype=torch.complex64), "got dtype complex64"),
+    ("abcd", "got dtype <U4"),
+])
+def test_object_or_complex_actions_on_the_drone_face_are_one_clear_error(action, words, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    env = parallel_env("drone-5")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=rf"step: action of 'drone_0': expected real numbers.*{words}"):
+        env.step({a: action for a in env.agents})
+
+
 # ------------------------------------------------------------------ bench command
 def test_missing_or_unknown_bench_target_is_a_clear_error(monkeypatch, capsys):
     with pytest.raises(ValueError, match="expected one of"):
@@ -302,6 +357,98 @@ def test_torch_reason_is_whole_words_of_its_first_sentence(run_dir, tmp_path, ca
         assert after == "" or after[0] in " .", f"cut mid-word: {reason!r}"
         assert "\x1b" not in reason and len(reason) <= 200
     assert "fractions.Fraction" in err and "do those steps only" not in err  # the object, not the advice
+
+
+def _weights_variant(run_dir, path, change):
+    """A copy of the run's weights record with ``change(record)`` applied, saved at ``path``."""
+    rec = torch.load(run_dir / "weights.pt", weights_only=True)
+    change(rec)
+    torch.save(rec, path)
+    return path
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda r: r.pop("arch"), "field 'arch' is missing; expected a dict of NetConfig settings"),
+    (lambda r: r.update(arch=[8, 3]), "field 'arch' is a list; expected a dict"),
+    (lambda r: r.update(scenario=5), "field 'scenario' is a int; expected a preset name"),
+    (lambda r: r.pop("state_dict"), "field 'state_dict' is missing"),
+    (lambda r: r.update(state_dict=[1, 2]), "field 'state_dict' is a list; expected a dict of tensors"),
+    (lambda r: r["state_dict"].update(extra=3), "entry 'extra' is a int; expected a tensor"),
+    (lambda r: r.update(world="mpe2"), "field 'world' is a str; expected a dict"),
+])
+def test_a_weights_file_with_a_missing_or_mistyped_field_names_the_field(run_dir, tmp_path, capsys, change, words):
+    err = evaluate_error(capsys, _weights_variant(run_dir, tmp_path / "w.pt", change))
+    assert words in err
+
+
+@pytest.mark.parametrize("dtype", [torch.complex64, torch.int64, torch.bool])
+def test_weights_that_are_not_real_floating_point_are_refused_not_cast(run_dir, tmp_path, capsys, dtype):
+    def change(rec):
+        sd = rec["state_dict"]
+        for k in sd:
+            sd[k] = sd[k].to(dtype)
+        if dtype.is_complex:
+            next(iter(sd.values())).view(-1)[0] = complex("nan")  # a NaN the real-only finite check missed
+    err = evaluate_error(capsys, _weights_variant(run_dir, tmp_path / "w.pt", change))
+    assert f"is {dtype}; expected floating-point weights" in err
+
+
+def test_weights_of_another_float_dtype_are_refused_naming_the_parameter(run_dir, tmp_path, capsys):
+    path = _weights_variant(run_dir, tmp_path / "w.pt",
+                            lambda r: r["state_dict"].update({k: v.double() for k, v in r["state_dict"].items()}))
+    err = evaluate_error(capsys, path)
+    assert "is torch.float64, the networks' is torch.float32" in err
+
+
+def test_sizes_a_weights_file_declares_are_checked_before_anything_is_allocated(run_dir, tmp_path, capsys):
+    import zipfile
+    name = next(iter(torch.load(run_dir / "weights.pt", weights_only=True)["state_dict"]))
+    # one stored number seen as 10**6 of them (stride 0): refused before anything reads it
+    path = _weights_variant(run_dir, tmp_path / "stride0.pt",
+                            lambda r: r["state_dict"].update({name: torch.zeros(1).expand(10**6)}))
+    assert "strides (0,), more elements than its stored bytes" in evaluate_error(capsys, path)
+    for key, value in (("width", 2000), ("gcn_layers", 10**6), ("group_size", 10**9)):
+        path = _weights_variant(run_dir, tmp_path / f"{key}.pt", lambda r: r["arch"].update({key: value}))
+        assert f"arch field {key!r} is {value}; expected at most" in evaluate_error(capsys, path)
+    # the same archive, its entries deflated (a deflate bomb unpacks to far more than the file holds)
+    bomb = tmp_path / "deflated.pt"
+    with zipfile.ZipFile(run_dir / "weights.pt") as src, zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as dst:
+        for info in src.infolist():
+            dst.writestr(info.filename, src.read(info))
+    assert "is compressed" in evaluate_error(capsys, bomb) and "expected torch.save's uncompressed archive" in \
+        evaluate_error(capsys, bomb)
+    legacy = tmp_path / "legacy.pt"
+    torch.save(torch.load(run_dir / "weights.pt", weights_only=True), legacy, _use_new_zipfile_serialization=False)
+    assert "legacy (pre-1.6) format" in evaluate_error(capsys, legacy)
+
+
+def test_a_weights_file_that_is_a_pipe_or_a_device_is_refused_at_once(tmp_path, capsys):
+    import os
+    os.mkfifo(tmp_path / "w.pt")
+    assert "expected an existing weights file" in evaluate_error(capsys, tmp_path / "w.pt")  # no hang
+    from masp_lite.weights import file_bytes
+    with pytest.raises(ValueError, match="not a regular file"):
+        file_bytes(tmp_path / "w.pt")  # read directly, it would wait for a writer forever
+
+
+def test_a_replaced_weights_file_is_read_again_even_with_the_same_size_and_time(run_dir, tmp_path):
+    import io
+    import os
+
+    from masp_lite.weights import read_weights
+    path = tmp_path / "w.pt"
+    path.write_bytes((run_dir / "weights.pt").read_bytes())
+    st = path.stat()
+    name = next(iter(read_weights(path)["state_dict"]))
+    rec = torch.load(path, weights_only=True)
+    rec["state_dict"][name].fill_(0.25)
+    buf = io.BytesIO()
+    torch.save(rec, buf)  # in memory, as save_weights does: the archive's name stays "archive"
+    (tmp_path / "other.pt").write_bytes(buf.getvalue())
+    assert (tmp_path / "other.pt").stat().st_size == st.st_size
+    os.replace(tmp_path / "other.pt", path)
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))  # as cp -p leaves it: same size, same mtime
+    assert bool((read_weights(path)["state_dict"][name] == 0.25).all())
 
 
 def test_wrong_scenario_hint_has_the_command_line_and_python_spellings(run_dir, capsys):

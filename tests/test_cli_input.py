@@ -163,3 +163,66 @@ def test_the_progress_bars_last_frame_shows_the_total(capsys):
     evaluate("h-greedy", "mpe-5", episodes=1, seeds=[0, 1, 2], progress=True)
     frames = re.findall(r"(\d+)/(\d+) \[", capsys.readouterr().err)
     assert frames and frames[-1] == ("54", "54")  # 3 seeds x 1 batch x 18 steps
+
+
+def test_evaluate_never_writes_its_record_over_its_checkpoint_or_another_file(tmp_path, capsys):
+    from masp_lite.weights import default_checkpoint
+    weights = tmp_path / "w.pt"
+    weights.write_bytes(default_checkpoint("mpe-5").read_bytes())
+    before = weights.read_bytes()
+    run = ["evaluate", "--method", "masp", "--scenario", "mpe-5", "--episodes", "1", "--seeds", "0",
+           "--checkpoint", str(weights), "--json"]
+    assert main(run + [str(weights)]) == 2
+    assert "is the --checkpoint file; expected another path" in capsys.readouterr().err
+    assert weights.read_bytes() == before
+    (tmp_path / "notes.txt").write_text("my notes\n")
+    assert main(run + [str(tmp_path / "notes.txt")]) == 2
+    assert "holds something other than a JSON record" in capsys.readouterr().err
+    assert (tmp_path / "notes.txt").read_text() == "my notes\n"
+    (tmp_path / "old.json").write_text('{"method": "masp"}\n')  # an earlier record is replaced
+    assert main(run + [str(tmp_path / "old.json")]) == 0
+    assert json.loads((tmp_path / "old.json").read_text())["episodes_per_seed"] == 1
+
+
+def test_a_record_that_does_not_fit_on_the_disk_leaves_the_earlier_one_whole(tmp_path):
+    """A file-size limit stands for a full disk: the new record cannot be written past 16 bytes."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    earlier = tmp_path / "out.json"
+    earlier.write_text('{"a": 1}\n')
+    script = (
+        "import json, resource, signal, sys\n"
+        "from pathlib import Path\n"
+        "from masp_lite.cli.evaluate import write_record\n"
+        "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+        "resource.setrlimit(resource.RLIMIT_FSIZE, (16, 16))\n"
+        "try:\n"
+        "    write_record({'method': 'h-greedy', 'scenario': 'mpe-5', 'pad': 'x' * 500}, Path(sys.argv[1]))\n"
+        "except ValueError as e:\n"
+        "    print('refused:', e)\n")
+    done = subprocess.run([sys.executable, "-c", script, str(earlier)], cwd=tmp_path, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
+    assert "refused: --json" in done.stdout, done.stderr
+    assert json.loads(earlier.read_text()) == {"a": 1}  # the earlier record as it was, not truncated
+    assert [p.name for p in tmp_path.iterdir()] == ["out.json"]  # no temporary file left behind
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seed", "-1"], "--seed: expected an int from 0 to 2**63 - 1"),
+    (["--threads", "10000"], "--threads: expected an int from 1 to"),
+    (["--threads", "0"], "--threads: expected an int from 1 to"),
+])
+def test_train_refuses_what_evaluate_refuses_before_anything_runs(argv, message, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", "--scenario", "mpe-5", "--out", str(out), "--quiet", "--set", "updates=1", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and not out.exists()
+
+
+def test_a_large_int_setting_is_read_exactly_not_through_a_float():
+    from masp_lite.training import parse_config
+    cfg, _ = parse_config(["updates=9007199254740993"])
+    assert cfg.run.updates == 9007199254740993 and isinstance(cfg.run.updates, int)
+    assert parse_config(["updates=1e3"])[0].run.updates == 1000

@@ -1,9 +1,10 @@
 """The package's imports flow one way and never in a circle (read from the source with ast).
 
-Layers, lowest first: ``envs``, ``config`` and ``threads`` -> ``parsing`` -> ``nets`` / ``planners`` -> ``algos`` /
-``weights`` -> ``policies`` -> ``evaluation`` / ``training`` / ``viz`` / ``course`` -> ``recipes`` -> ``budgets``
-(a recipe's stage at another budget) -> ``reproduction`` (the only code that knows the repository: records, paper
-numbers, the training plan) -> ``bench`` (timings beside the paper's) -> ``cli``. A module
+Layers, lowest first: ``files`` (the one atomic write, the one bounded reader) -> ``envs``, ``config`` and
+``threads`` -> ``parsing`` -> ``nets`` / ``planners`` -> ``algos`` / ``weights`` -> ``policies`` -> ``evaluation`` /
+``training`` / ``viz`` / ``course`` / ``primer`` -> ``recipes`` -> ``budgets`` (a recipe's stage at another budget)
+-> ``reproduction`` (the only code that knows the repository: records, paper numbers, the training plan) -> ``bench``
+(timings beside the paper's) -> ``cli``. A module
 may import its own package and anything in a lower layer; imports inside functions (lazy
 ones) count too.
 """
@@ -17,9 +18,9 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "masp_lite"
-LAYER = {"envs": 0, "config": 0, "threads": 0, "parsing": 0.5, "nets": 1, "planners": 1, "algos": 2, "weights": 2,
-         "policies": 3, "evaluation": 4, "training": 5, "viz": 5, "course": 5, "primer": 5, "recipes": 5.2,
-         "budgets": 5.3, "reproduction": 5.5, "bench": 5.7, "cli": 6, "__main__": 7, "__init__": 7}
+LAYER = {"files": -1, "envs": 0, "config": 0, "threads": 0, "parsing": 0.5, "nets": 1, "planners": 1, "algos": 2,
+         "weights": 2, "policies": 3, "evaluation": 4, "training": 5, "viz": 5, "course": 5, "primer": 5,
+         "recipes": 5.2, "budgets": 5.3, "reproduction": 5.5, "bench": 5.7, "cli": 6, "__main__": 7, "__init__": 7}
 
 
 def _module_name(path: Path) -> str:

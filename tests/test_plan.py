@@ -154,3 +154,55 @@ def test_bad_plans_and_options_are_one_clear_error(tmp_path, capsys):
     assert main(["reproduce", "--train", "--dry-run", "--only", "mappo/mpe-5"]) == 0
     out = capsys.readouterr().out
     assert "mappo/mpe-5-seed0" in out and "h-mappo/mpe-5-seed0" in out and "faithful" not in out.split("\n")[1]
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda r: r.update(name="../../escaped"), "run name '../../escaped': expected a relative path inside the root"),
+    (lambda r: r.update(name="/tmp/escaped"), "run name '/tmp/escaped': expected a relative path"),
+    (lambda r: r.update(records=["/tmp/x.json"]), "record '/tmp/x.json': expected a relative path"),
+    (lambda r: r.update(records=["results/../masp_lite/weights/manifest.json"]), "without '..'"),
+    (lambda r: r.update(records=["masp_lite/weights/manifest.json"]), "expected a results/....json path"),
+    (lambda r: r["stages"][0].update(init=0), "init 0; expected an earlier stage's index"),
+])
+def test_a_plan_writes_only_inside_its_root(tmp_path, change, words):
+    path = tmp_path / "plan.json"
+    save_plan([_tiny_run(0)], path)
+    data = json.loads(path.read_text())
+    change(data[0])
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match="expected a JSON list of runs") as e:
+        load_plan(path)
+    assert words in str(e.value)
+    stages = tuple(Stage(**s) for s in data[0]["stages"])
+    run = Run(**{**data[0], "stages": stages, "records": tuple(data[0]["records"])})
+    with pytest.raises(ValueError, match="expected"):  # a plan built in Python is checked the same way
+        run_plan([run], tmp_path / "root", use_ray=False)
+    assert not (tmp_path / "root").exists() and sorted(p.name for p in tmp_path.iterdir()) == ["plan.json"]
+
+
+def test_a_plan_that_is_a_pipe_or_nested_too_deep_is_one_clear_error(tmp_path):
+    os.mkfifo(tmp_path / "plan.json")
+    with pytest.raises(ValueError, match="not a regular file"):
+        load_plan(tmp_path / "plan.json")  # at once, no writer awaited
+    (tmp_path / "deep.json").write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(ValueError, match="expected a JSON list of runs"):
+        load_plan(tmp_path / "deep.json")
+
+
+def test_malformed_kept_histories_are_named_and_their_runs_planned_untimed(tmp_path):
+    base = tmp_path / "results" / "training" / "mappo"
+    base.mkdir(parents=True)
+    for name, text in {"mpe-5-seed0": '{"file": "a-seed0.pt"}', "mpe-20-seed0": '{"stages": 5}',
+                       "mpe-50-seed0": '{"stages": [{"scenario": "mpe-50"}]}', "x-seed0": "{}"}.items():
+        (base / f"{name}.manifest.json").write_text(text)
+    runs, skipped = read_plan(tmp_path)
+    why = dict(skipped)
+    assert "malformed" in why["mappo/mpe-5-seed0"] and "malformed" in why["mappo/mpe-20-seed0"]
+    assert why["mappo/x-seed0"].startswith("no recipe makes it")
+    by_name = {r.name: r for r in runs}
+    assert all(by_name[f"mappo/{p}-seed0"].wall_clock_s is None for p in ("mpe-5", "mpe-20", "mpe-50"))
+    d = base.parent / "darl1n"
+    d.mkdir()
+    (d / "mpe-5-seed0.manifest.json").write_text("{not json")
+    with pytest.raises(ValueError, match=r"mpe-5-seed0.manifest.json: expected a JSON"):  # names the file
+        read_plan(tmp_path)

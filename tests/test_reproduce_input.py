@@ -73,3 +73,42 @@ def test_text_output_fits_100_columns_with_one_legend_and_each_note_once(capsys)
 
 def test_a_negative_cut_reads_as_more():
     assert _fewer_text(12.34) == "12.3 % fewer" and _fewer_text(-1.4) == "1.4 % more"
+
+
+def test_a_pipe_a_dangling_link_or_a_deep_record_is_one_error_naming_it(tmp_path):
+    import os
+    folder, path = _folder(tmp_path, GOOD)
+    os.mkfifo(folder / "x.json")
+    with pytest.raises(ValueError, match=r"x.json' is not a regular file"):
+        load_records(folder)  # at once: a pipe is not waited on
+    (folder / "x.json").unlink()
+    (folder / "gone.json").symlink_to(tmp_path / "nowhere.json")
+    with pytest.raises(ValueError, match=r"gone.json'.*a link to a missing file"):
+        load_records(folder)
+    (folder / "gone.json").unlink()
+    (folder / "deep.json").write_text('{"method": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    with pytest.raises(ValueError, match=r"deep.json: expected a JSON evaluation record, could not parse it"):
+        load_records(folder)
+    (folder / "deep.json").unlink()
+    for value in ([1], {"a": 1}):  # unhashable where a name belongs
+        path.write_text(json.dumps({**GOOD, "method": value}))
+        with pytest.raises(ValueError, match=r"field 'method': expected a name"):
+            load_records(folder)
+
+
+def test_a_folder_named_like_a_record_is_walked_and_a_linked_folder_followed(tmp_path):
+    folder, path = _folder(tmp_path, GOOD)
+    (folder / "sub.json").mkdir()  # a folder, not a record
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "r2.json").write_text(json.dumps(GOOD))
+    (folder / "linked").symlink_to(elsewhere, target_is_directory=True)
+    (elsewhere / "back").symlink_to(folder, target_is_directory=True)  # a loop is walked once
+    assert sorted(Path(r["path"]).name for r in load_records(folder)) == ["r.json", "r2.json"]
+
+
+def test_an_empty_records_folder_is_an_error_not_empty_tables(tmp_path, capsys):
+    (tmp_path / "records").mkdir()
+    assert main(["reproduce", "--table", "claims", "--records", str(tmp_path / "records")]) == 2
+    err = capsys.readouterr().err
+    assert "found no evaluate records" in err and "Traceback" not in err

@@ -24,6 +24,8 @@ import json
 import os
 import time
 
+from ..files import atomic_write
+
 __all__ = ["TARGETS", "calls_per_second", "load_target", "load_average", "write_json"]
 
 #: target -> one-line description
@@ -60,9 +62,7 @@ def load_average() -> float | None:
 def write_json(path, result: dict, indent: int = 2) -> None:
     """Write a target's numbers to ``path`` (its ``--json`` option), making missing folders."""
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, "w") as f:
-        json.dump(result, f, indent=indent)
-        f.write("\n")
+    atomic_write(path, json.dumps(result, indent=indent) + "\n")
 
 
 def load_target(name: str):

@@ -19,11 +19,13 @@ import torch
 
 from ..envs import OVERRIDES, SCENARIOS
 from ..evaluation import MAX_ENVS, evaluate, format_table
+from ..files import atomic_write
 from ..parsing import parse_sets
 from ..policies import get_factory, method_names, method_options, option_types
 from ..threads import EVALUATE_THREADS
 
-__all__ = ["add_arguments", "run", "split_sets", "override_types", "check_writable", "write_record", "EXAMPLES"]
+__all__ = ["add_arguments", "run", "split_sets", "override_types", "check_writable", "check_replaceable",
+           "write_record", "EXAMPLES"]
 
 EXAMPLES = [
     "evaluate --method h-greedy --scenario mpe-20 --episodes 100 --seeds 0 1 2 --json out.json",
@@ -109,6 +111,23 @@ def check_writable(path, flag: str = "--json", example: str = "out.json") -> Pat
     return path
 
 
+def check_replaceable(path: Path, checkpoint=None) -> None:
+    """An existing ``--json`` file may be replaced only when it is an earlier record (or empty), never an input.
+
+    ``evaluate --checkpoint w.pt --json w.pt`` would put the record over the weights it measured; a
+    weights file, a notebook or any other file that is not JSON is refused the same way."""
+    if not path.is_file():
+        return
+    if checkpoint is not None and Path(checkpoint).exists() and os.path.samefile(path, checkpoint):
+        raise ValueError(f"--json {str(path)!r} is the --checkpoint file; expected another path for the record "
+                         "(writing it there would replace the weights)")
+    with open(path, "rb") as f:
+        head = f.read(64).lstrip()
+    if head and not head.startswith(b"{"):
+        raise ValueError(f"--json {str(path)!r} holds something other than a JSON record (it starts with "
+                         f"{head[:8]!r}); expected a new path or an earlier record to replace")
+
+
 def write_record(record: dict, path: Path) -> Path:
     """Write ``record`` to ``path``; if that fails after the run, beside the working folder; returns where.
 
@@ -117,15 +136,14 @@ def write_record(record: dict, path: Path) -> Path:
     working folder (a numbered name if that exists), and a ValueError says both."""
     text = json.dumps(record, indent=2) + "\n"
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
+        atomic_write(path, text)  # whole or not at all: a full disk leaves an earlier record as it was
         return path
     except OSError as e:
         reason = e.strerror or type(e).__name__
     stem = f"evaluate-{record['method']}-{record['scenario']}"
     spare = next(p for k in range(10_000) if not (p := Path(f"{stem}{'-' + str(k) if k else ''}.json")).exists())
     try:
-        spare.write_text(text)
+        atomic_write(spare, text)
     except OSError:
         print(text)
         raise ValueError(f"--json {str(path)!r}: could not write the record ({reason}), nor a copy in the working "
@@ -160,6 +178,8 @@ def run(args) -> int:
     overrides, options = split_sets(args.set, args.method, args.scenario, checkpoint_flag=True)
     out = check_writable(args.json) if args.json is not None else None
     torch.set_num_threads(args.threads)
+    if out is not None:
+        check_replaceable(out, args.checkpoint)
     record = evaluate(args.method, args.scenario, episodes=args.episodes, seeds=args.seeds,
                       overrides=overrides, method_options=options, checkpoint=args.checkpoint,
                       device=args.device, num_envs=args.num_envs, progress=True)

@@ -98,6 +98,9 @@ def run(args) -> int:
         records = evaluate_records(names, episodes=4 if args.quick else 100, progress=True)
     else:
         records = load_records(args.records or RESULTS_DIR)
+        if not records:  # every cell would read "—": say so instead of printing empty tables
+            raise ValueError(f"--records {args.records or RESULTS_DIR}: found no evaluate records (*.json) there; "
+                             "expected a folder such as results/, or --evaluate / --quick to make them")
     fmt = args.format or ("text" if sys.stdout.isatty() else "markdown")
     for name in names:
         print(render(build(name, records, latex=fmt == "latex"), fmt))

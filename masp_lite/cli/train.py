@@ -28,11 +28,15 @@ import sys
 
 import torch
 
+from ..envs.checks import check_seed
 from ..recipes import get_recipe, recipe_names, run_recipe
 from ..threads import TRAIN_THREADS
-from ..training import checkpoint_iterations, method_config, train
+from ..training import RunWriteError, checkpoint_iterations, method_config, train
 
-__all__ = ["add_arguments", "run", "resume_command", "EXAMPLES"]
+__all__ = ["add_arguments", "run", "resume_command", "EXAMPLES", "MAX_THREADS"]
+
+#: The most torch threads ``--threads`` takes (or this machine's cores, when it has more).
+MAX_THREADS = 64
 
 EXAMPLES = [
     "train --method masp --scenario mpe-20 --out runs/mpe-20 --seed 0 --set lr=2e-4",
@@ -106,6 +110,8 @@ def _run_recipe(args) -> int:
     except KeyboardInterrupt:
         print(f"\ninterrupted; run the same command again to resume recipe {recipe.name} in {out}", file=sys.stderr)
         return 130
+    except RunWriteError as e:  # disk full, read-only: the same command goes on once it can write
+        raise ValueError(f"{e}; once it can be written, run the same command again") from None
     ev = m["final_eval"]
     print(f"recipe {recipe.name}, last stage on {m['scenario']}: SR {ev['sr']:.3f}  Steps {ev['steps']:.2f}  "
           f"CR {ev['cr']:.3f} -> {out}")
@@ -113,8 +119,12 @@ def _run_recipe(args) -> int:
 
 
 def run(args) -> int:
-    if args.threads < 1:
-        raise ValueError(f"--threads: expected a positive int, got {args.threads}")
+    most = max(MAX_THREADS, os.cpu_count() or 1)
+    if not 1 <= args.threads <= most:  # thousands of threads stall the machine rather than speed anything up
+        raise ValueError(f"--threads: expected an int from 1 to {most}, got {args.threads}")
+    check_seed(args.seed, "--seed")
+    if args.out is not None and not args.out.strip():
+        raise ValueError("--out: expected a folder path such as runs/mpe-20, got an empty string")
     if args.recipe is not None:
         torch.set_num_threads(args.threads)
         return _run_recipe(args)
@@ -133,6 +143,10 @@ def run(args) -> int:
     except KeyboardInterrupt:  # Ctrl-C: no traceback; say where the run stands and how to go on
         print(f"\n{_interrupted(args, out, cfg)}", file=sys.stderr)
         return 130
+    except RunWriteError as e:  # disk full, read-only: one line with the command that goes on once it can write
+        resume = resume_command(args, out) if e.last_checkpoint is not None else None
+        raise ValueError(f"{e}; once it can be written, " + (f"resume with: {resume}" if resume else
+                         "run the same command again")) from None
     ev = m["final_eval"]
     print(f"{args.method} on {m['scenario']}, final evaluation (deterministic, {ev['episodes']} episodes): "
           f"SR {ev['sr']:.3f}  Steps {ev['steps']:.2f}  CR {ev['cr']:.3f}  "

@@ -45,6 +45,8 @@ from nbgrader.preprocessors import (
 from nbgrader.preprocessors.base import NbGraderPreprocessor
 from nbgrader.utils import is_grade
 
+from ..files import atomic_write, read_bounded
+
 __all__ = ["generate", "generate_all", "learner_notebook", "TagGradedCells", "SOLUTIONS", "NOTEBOOKS"]
 
 #: The default folders, relative to the current folder (the repository root, or any copy of the
@@ -90,11 +92,11 @@ def generate(src: str | Path, dst: str | Path) -> Path:
         raise ValueError(f"generate: expected an existing instructor notebook (.ipynb), got {str(src)!r}")
     if dst.is_dir():
         dst = dst / src.name
-    nb = nbformat.read(src, as_version=4)
+    nb = nbformat.reads(read_bounded(src, what="instructor notebook").decode("utf-8"), as_version=4)
     learner = learner_notebook(nb)
     nbformat.validate(learner)
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    nbformat.write(learner, dst)
+    text = nbformat.writes(learner)
+    atomic_write(dst, text if text.endswith("\n") else text + "\n")  # what nbformat.write writes, whole or not at all
     return dst
 
 

@@ -46,6 +46,10 @@ class BatchedWorld:
             self.device = torch.device(device)
         except (RuntimeError, TypeError) as e:
             raise ValueError(f"device: expected a torch device such as 'cpu' or 'cuda', got {device!r}") from e
+        if self.device.type not in ("cpu", "cuda"):  # 'meta' holds no numbers; others are untested
+            raise ValueError(f"device {str(device)!r}: expected 'cpu' or 'cuda' (a world computes real numbers)")
+        from .checks import check_world_memory
+        check_world_memory(num_envs, sc.num_agents)
         if self.device.type == "cuda" and not torch.cuda.is_available():
             why = "this torch build has no CUDA" if torch.version.cuda is None else "no CUDA device is visible"
             raise ValueError(f"device {str(device)!r}: {why} (torch {torch.__version__}); expected 'cpu'")
@@ -63,6 +67,9 @@ class BatchedWorld:
         dtypes and masks of another length are one clear error."""
         if env_ids is None:
             return np.arange(self.num_envs)
+        if torch.is_tensor(env_ids) and env_ids.dtype == torch.uint8:
+            raise ValueError("env_ids: a torch.uint8 tensor could be a mask (old torch) or indices; expected a "
+                             f"bool mask of shape ({self.num_envs},) or int64 indices")
         raw = np.asarray(env_ids.cpu() if torch.is_tensor(env_ids) else env_ids)
         if raw.dtype == bool:
             if raw.shape != (self.num_envs,):

@@ -50,6 +50,8 @@ import mujoco
 import numpy as np
 import torch
 
+from ..files import atomic_write
+
 __all__ = ["DRONE_SPEED", "HUMMINGBIRD", "ARM_LENGTH", "ROTOR_RADIUS", "COLLISION_RADIUS", "CONTROL_DT",
            "PHYSICS_DT", "SUBSTEPS", "MAX_THRUST", "HOVER_COMMAND", "build_xml", "build_model",
            "save_xml", "rotor_positions", "GRAVITY", "quat_to_matrix"]
@@ -153,6 +155,5 @@ def build_model(num_drones: int, collision_radius: float = COLLISION_RADIUS) -> 
 
 def save_xml(path: str, num_drones: int = 5) -> str:
     """Write the model of ``num_drones`` drones to ``path`` (open it in ``mujoco.viewer``)."""
-    with open(path, "w") as f:
-        f.write(build_xml(num_drones))
+    atomic_write(path, build_xml(num_drones))
     return path

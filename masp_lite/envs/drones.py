@@ -70,6 +70,7 @@ import numpy as np
 import torch
 
 from .base import BatchedWorld
+from .checks import check_seed, reset_options
 from .drone_model import ARM_LENGTH, COLLISION_RADIUS, HOVER_COMMAND, HUMMINGBIRD, MAX_THRUST, SUBSTEPS, build_xml
 from .scenarios import Scenario
 
@@ -99,7 +100,7 @@ class DroneWorld(BatchedWorld):
         half = sc.world_size / 2
         if half < r + _GAP:
             raise ValueError(f"world_size: expected at least {2 * (r + _GAP):g} m for drones")
-        self._rng = np.random.default_rng(seed)
+        self._rng = np.random.default_rng(check_seed(seed))
         self.model = mujoco.MjModel.from_xml_string(self.model_xml())
         B, N = self.num_envs, self.num_agents
         if B == 1:  # one world: one MjData stepped by mj_step (see the module docstring)
@@ -158,11 +159,11 @@ class DroneWorld(BatchedWorld):
     def reset(self, seed: int | None = None, options: dict | None = None, env_ids=None) -> dict[str, torch.Tensor]:
         """Start new episodes (all, or ``env_ids``) and return the observation (see module doc)."""
         if seed is not None:
-            self._rng = np.random.default_rng(int(seed))
+            self._rng = np.random.default_rng(check_seed(seed))
         N = self.num_agents
         ids = self._env_ids(env_ids)
         n = len(ids)
-        options = dict(options or {})
+        options = reset_options(options)
         given = self._start_state(options, n)
         if n == 0:  # an empty id list or a mask with nothing marked: nothing to start
             return self.observe()

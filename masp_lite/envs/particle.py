@@ -85,7 +85,8 @@ class ParticleWorld(BatchedWorld):
         if seed is None:
             self._rng.seed()  # fresh entropy, leaving torch's global generator alone
         else:
-            self._rng.manual_seed(int(seed))
+            from .checks import check_seed  # loaded when first used, as the start-state checks are
+            self._rng.manual_seed(check_seed(seed))
         self._dirs = torch.tensor(ACTION_DIRECTIONS, dtype=dtype, device=self.device) * PHYSICS["sensitivity"]
         eye = torch.eye(self.num_agents, dtype=torch.bool, device=self.device)
         self._not_self = ~eye
@@ -113,11 +114,15 @@ class ParticleWorld(BatchedWorld):
         says what is refused).
         """
         if seed is not None:
-            self._rng.manual_seed(int(seed))
+            from .checks import check_seed
+            self._rng.manual_seed(check_seed(seed))
         B, N, K = self.num_envs, self.num_agents, self.num_obstacles
         ids = torch.from_numpy(self._env_ids(env_ids))
         n = len(ids)
-        options = dict(options or {})
+        if options is not None:
+            from .checks import reset_options
+            options = reset_options(options)
+        options = options or {}
         given = {k: torch.from_numpy(v) for k, v in self._start_state(options, n).items()}
         obst, agents, lms = self._spawn(n, given)
         keep = torch.from_numpy(self._team_mask(n, options.get("keep")))

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from .checks import real_array
+
 __all__ = ["start_state", "bounds_text", "check_particle_start"]
 
 
@@ -31,7 +33,7 @@ def start_state(world, options: dict, n: int) -> dict[str, np.ndarray]:
             continue
         value = options[name]
         shape = (world.num_obstacles if name == "obstacle_pos" else world.num_agents, d)
-        a = np.asarray(value.detach().cpu() if torch.is_tensor(value) else value, dtype=np.float64)
+        a = real_array(value, f"reset option {name!r}")
         if a.shape == shape:
             a = np.broadcast_to(a, (n, *shape))
         if a.shape != (n, *shape):

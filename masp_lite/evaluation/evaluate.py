@@ -22,7 +22,7 @@ from ..weights import sha256
 from .metrics import EpisodeLog, collision_rate, reached_target, steps, success_rate
 from .rollouts import rollout_timings
 
-__all__ = ["evaluate", "MAX_ENVS", "memory_estimate"]
+__all__ = ["evaluate", "MAX_ENVS", "memory_estimate", "check_memory"]
 
 #: Most episodes run side by side in one batched world during evaluation.
 MAX_ENVS = 100
@@ -50,11 +50,13 @@ def _available_bytes() -> int | None:
     return None
 
 
-def _check_memory(num_agents: int, num_envs: int) -> None:
+def check_memory(num_agents: int, num_envs: int, flag: str = "--num-envs ") -> None:
+    """One ValueError, with the estimate and how many worlds fit, when ``num_envs`` worlds of ``num_agents``
+    agents would need more memory than is available (:func:`memory_estimate`); ``flag`` spells the fix."""
     need, have = memory_estimate(num_agents, num_envs), _available_bytes()
     if have is not None and need > have:
         fit = max(0, (have - BASE_BYTES) // (PAIR_BYTES * num_agents ** 2))
-        hint = f"pass num_envs={fit} (--num-envs {fit}) or fewer" if fit >= 1 else "choose fewer agents"
+        hint = f"pass num_envs={fit} ({flag}{fit}) or fewer" if fit >= 1 else "choose fewer agents"
         raise ValueError(f"{num_agents} agents in {num_envs} worlds side by side need about {need / 2 ** 30:.1f} GiB "
                          f"(memory grows with N^2: ~{PAIR_BYTES} bytes per agent pair and world), more than the "
                          f"{have / 2 ** 30:.1f} GiB available; {hint}")
@@ -121,7 +123,7 @@ def evaluate(method: str, scenario: str, episodes: int = 100, seeds=(0, 1, 2), o
     if num_envs is not None and (isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1):
         raise ValueError(f"num_envs: expected a positive int (worlds per batch), got {num_envs!r}")
     B = min(episodes, num_envs or MAX_ENVS)
-    _check_memory(get_scenario(scenario, **overrides).num_agents if isinstance(scenario, str) else scenario.num_agents,
+    check_memory(get_scenario(scenario, **overrides).num_agents if isinstance(scenario, str) else scenario.num_agents,
                   B)
     bar = None
     logs, timings = [], []

@@ -17,7 +17,9 @@ The methods live in this package:
 :mod:`.drones` and :mod:`.drone_planners` (the drone versions of ``h-greedy`` and of the (H) planners)
 and :mod:`.masp` (``masp``, its ablations ``masp-rg``,
 ``gm-mlp``, ``cae-mlp``, and the RL baselines ``h-mappo``, ``htamp``, ``mage-x``, ``mappo``, ``darl1n``)
-and :mod:`.drone_masp` (``masp``, ``masp-velocity`` and the RL baselines on drones).
+and :mod:`.drone_masp` (``masp``, ``masp-velocity`` and the RL baselines on drones);
+:mod:`.goal_sources` says where a drone planner's goals come from (its Hungarian assignment, or a
+trained Goal Matcher: ``goals="masp"``).
 """
 from __future__ import annotations
 

@@ -5,7 +5,9 @@ the goals are chosen the same way every global step (by default the assignment o
 goals with the least summed squared ``-log`` score, :func:`~masp_lite.nets.decoding.joint_argmax`,
 or the Hungarian assignment with weights trained with ``goal_matcher="hungarian"``), and every
 step the executor's action is its Gaussian's mean (``deterministic``, the default) or a sample,
-clipped to [−1, 1] (:mod:`masp_lite.nets.drones`).
+clipped to [−1, 1] (:mod:`masp_lite.nets.drones`). ``decode="hungarian"`` gives the executor
+the Hungarian goals instead, every global step: with the planners' ``goals="masp"``
+(:mod:`masp_lite.policies.goal_sources`) it splits a gap in Steps between the two levels.
 
 The method table (:data:`masp_lite.policies.METHODS`) gives ``masp`` on a drone world this
 class (weights with ``action="throttle"``, the paper's motor commands); ``masp-velocity`` is

@@ -11,7 +11,10 @@ The paper's planning baselines (section "Baselines") in its quadrotor world (sec
   unreached landmarks for a varying one (``team_protocol`` as there); ``h-bottleneck``
   takes the min–max assignment instead (:func:`~masp_lite.algos.team.bottleneck`,
   re-solved every global step, as its particle version). A drone left without a goal
-  holds the point where it was at that global step.
+  holds the point where it was at that global step. With ``goals="masp"`` (or
+  ``"masp-velocity"``; ``checkpoint`` for other weights of that method) the goals are
+  instead those MASP's trained Goal Matcher decodes, every one of its global steps
+  (:mod:`masp_lite.policies.goal_sources`): MASP's upper level above the planner's flight.
 * **Planning in the horizontal plane, at each drone's landmark height.** Every drone heads
   for its goal's altitude at once (the controller's altitude loop) and the planners work
   on ``(x, y)`` with the library's 2-D algorithms, unchanged: ORCA's half-planes and
@@ -46,7 +49,8 @@ step (RRT* also when the next segment gets blocked), followed with
 :func:`~masp_lite.planners.controllers.track_path`. Everything happens inside ``act``, so
 the decision time measured around it is the full planning time per step. The particle
 classes hand a drone world to these (``h-orca``, ``h-rrtstar``, ``h-voronoi``,
-``h-bottleneck`` work on both worlds); options are the ``OPTIONS`` of each class.
+``h-bottleneck`` work on both worlds); options are the ``OPTIONS`` of each class, and (but for
+``h-bottleneck``) ``goals`` and ``checkpoint``.
 """
 from __future__ import annotations
 
@@ -60,6 +64,7 @@ from ..planners.geometric import LeeController
 from ..planners.orca import orca_halfplanes, solve_orca
 from ..planners.rrt_star import plan_rrt_star, segments_blocked
 from ..planners.voronoi import plan_voronoi
+from .goal_sources import goal_source
 
 __all__ = ["DronePlanner", "DroneHOrca", "DroneHRRTStar", "DroneHVoronoi", "DroneBottleneck", "altitude_gap",
            "VERTICAL_MARGIN", "CLIMB_GAIN", "FENCE_MARGIN", "FENCE_TIME"]
@@ -112,7 +117,8 @@ class DronePlanner:
     #: Planner parameters accepted as keyword options, with their defaults.
     OPTIONS: dict = dict(max_speed=4.0)
 
-    def __init__(self, world, seed: int = 0, team_protocol: str = "random_subset", **options):
+    def __init__(self, world, seed: int = 0, team_protocol: str = "random_subset", goals: str = "hungarian",
+                 checkpoint: str | None = None, **options):
         name = type(self).__name__
         if getattr(getattr(world, "scenario", None), "kind", None) != "drone":
             raise ValueError(f"{name}: expected a drone world (drone-* scenario), got scenario "
@@ -120,11 +126,12 @@ class DronePlanner:
         unknown = sorted(set(options) - set(self.OPTIONS))
         if unknown:
             raise ValueError(f"{name}: unknown option(s) {unknown}; expected some of "
-                             f"{sorted(self.OPTIONS) + ['seed', 'team_protocol']}")
+                             f"{sorted(self.OPTIONS) + ['checkpoint', 'goals', 'seed', 'team_protocol']}")
         self.world, self.scenario, self.seed = world, world.scenario, int(seed)
         self.opt = {**self.OPTIONS, **{k: type(self.OPTIONS[k])(v) for k, v in options.items()}}
         self.team = self.team_assignment(team_protocol)
-        self.global_step = GLOBAL_STEP
+        self.source = goal_source(goals, world, checkpoint)   # None: the (H) assignment above
+        self.global_step = GLOBAL_STEP if self.source is None else self.source.global_step
         # DroneHungarianGreedy's controller: kx = kv = 4, the position loop critically damped
         self.controller = LeeController(kx=4.0, kv=4.0, max_speed=self.opt["max_speed"])
         self.gain = self.controller.kx / self.controller.kv   # its position loop as a velocity
@@ -140,11 +147,15 @@ class DronePlanner:
 
     def reset(self, obs) -> None:
         self.team.reset()
+        if self.source is not None:
+            self.source.reset(obs)
         self.goal_index = self.goal = None
         self.reset_planner(obs)
 
     def assign(self, obs) -> np.ndarray:
-        """Goal index per drone (B, N), ``-1`` for none: the (H) assignment in 3-D."""
+        """Goal index per drone (B, N), ``-1`` for none: the (H) assignment in 3-D, or the goal source's."""
+        if self.source is not None:
+            return self.source(obs).cpu().numpy()
         return self.team.assign(obs, self.assignment).cpu().numpy()
 
     def act(self, obs) -> torch.Tensor:
@@ -215,6 +226,10 @@ class DroneBottleneck(DronePlanner):
     def __init__(self, world, global_step: int = GLOBAL_STEP, **options):
         if isinstance(global_step, bool) or not isinstance(global_step, int) or global_step < 1:
             raise ValueError(f"global_step: expected a positive int, got {global_step!r}")
+        if options.get("goals", "hungarian") != "hungarian" or options.get("checkpoint") is not None:
+            raise ValueError("h-bottleneck: its min-max assignment is its goal source (goals= and checkpoint= "
+                             "are not options of it); for a straight flight to MASP's goals use h-greedy "
+                             "with goals=masp")
         super().__init__(world, team_protocol="resolve", **options)
         self.global_step = global_step
 

@@ -137,25 +137,33 @@ class MASPPolicy:
             .to(logits.device)
 
     @torch.inference_mode()
+    def choose_goals(self, obs) -> torch.Tensor:
+        """The goals (B, N) this policy's goal source picks for ``obs``: one global step's choice.
+
+        The Goal Matcher decoded by ``decode`` (or the Hungarian diagnostic, or the variant's own
+        source: random goals, ``h-mappo``'s Hungarian ones). :meth:`act` calls it every global step;
+        the drone planners' ``goals="masp"`` (:mod:`masp_lite.policies.goal_sources`) call it to fly
+        MASP's goals with their own flight, so the two read one decoding."""
+        mask = None
+        if self.world.scenario.varying:  # landmarks already reached count for SR; pick among the rest
+            mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
+        if self.nets.config.goal_matcher == "random":  # "MASP w. RG"
+            if self.resample or self.goals is None or not torch.equal(obs["alive"], self.drawn_for):
+                self.drawn_for = obs["alive"].clone()
+                return random_goals(obs["alive"], obs["landmark_pos"].shape[1], self.generator, mask)
+            return self.goals
+        if self.decode == "hungarian" or self.nets.config.goal_matcher == "hungarian":
+            # h-mappo, or the diagnostic: the Hungarian reference instead of the Goal Matcher
+            return hungarian_goals(obs["agent_pos"], obs["landmark_pos"], obs["alive"], mask)
+        return self._goals(self.nets.gm_logits(obs, self.scale, mask), obs["alive"], mask)
+
+    @torch.inference_mode()
     def act(self, obs) -> torch.Tensor:
         due = obs["t"] % self.global_step == 0
         if self.nets.config.goal_matcher == "none":  # mappo, darl1n: no goals, every landmark in view
             pass
         elif self.goals is None or bool(due.any()):
-            mask = None
-            if self.world.scenario.varying:  # landmarks already reached count for SR; pick among the rest
-                mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
-            if self.nets.config.goal_matcher == "random":  # "MASP w. RG"
-                if self.resample or self.goals is None or not torch.equal(obs["alive"], self.drawn_for):
-                    new = random_goals(obs["alive"], obs["landmark_pos"].shape[1], self.generator, mask)
-                    self.drawn_for = obs["alive"].clone()
-                else:
-                    new = self.goals
-            elif self.decode == "hungarian" or self.nets.config.goal_matcher == "hungarian":
-                # h-mappo, or the diagnostic: the Hungarian reference instead of the Goal Matcher
-                new = hungarian_goals(obs["agent_pos"], obs["landmark_pos"], obs["alive"], mask)
-            else:
-                new = self._goals(self.nets.gm_logits(obs, self.scale, mask), obs["alive"], mask)
+            new = self.choose_goals(obs)
             self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
         B, N = obs["alive"].shape
         perm = torch.rand(B, N, generator=self.generator).argsort(-1).to(obs["alive"].device)

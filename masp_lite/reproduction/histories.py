@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import read_bounded
 from ..viz.progress import read_progress
 from ..weights import base_scenario, read_manifest, shipped_entry
 from . import KEPT_DIR, REPO_ROOT
@@ -42,7 +43,7 @@ def training_history(scenario: str, root=None) -> dict | None:
     path = Path(REPO_ROOT if root is None else root) / entry.get("history", "")
     if not entry.get("history") or not path.is_file():
         return None
-    history = json.loads(path.read_text())
+    history = json.loads(read_bounded(path, what="kept history"))
     for stage in history.get("stages", []):
         curve = path.parent / stage["progress"] if stage.get("progress") else None
         stage["progress"] = curve if curve is not None and curve.is_file() else None

@@ -40,6 +40,7 @@ import torch
 from ..config import TrainConfig
 from ..envs import get_scenario
 from ..evaluation import evaluate
+from ..files import read_bounded
 from ..recipes import RECIPES, Recipe, stage_config
 from ..training import train
 from ..weights import atomic_write_bytes, base_scenario, sha256, trained_preset
@@ -106,12 +107,16 @@ def _kept_stages(history: dict | None, planned: list) -> list | None:
         return None
     defaults = TrainConfig().flat()  # a setting added since a stage was trained had its default then
     out = []
-    for st, p in zip(history["stages"], planned):
-        t = st["training"]
-        if st["scenario"] != p.scenario or dict(t.get("overrides", {})) != p.overrides or \
-                {**defaults, **t["config"]} != p.config or int(t["seed"]) != p.seed:
-            return None
-        out.append(t)
+    try:
+        for st, p in zip(history["stages"], planned):
+            t = st["training"]
+            if st["scenario"] != p.scenario or dict(t.get("overrides", {})) != p.overrides or \
+                    {**defaults, **t["config"]} != p.config or int(t["seed"]) != p.seed:
+                return None
+            out.append({**t, "wall_clock_s": float(t["wall_clock_s"]), "env_steps": int(t["env_steps"]),
+                        "torch_threads": int((t.get("machine") or {}).get("torch_threads", 1))})
+    except (KeyError, TypeError, ValueError, AttributeError):  # a malformed stage: not a record of this recipe
+        return None
     return out
 
 
@@ -127,8 +132,8 @@ def _run_stages(recipe: Recipe, keep_stage, seed: int, history: dict | None) -> 
     kept = _kept_stages(history, planned)
     if kept is None:
         return tuple(planned)
-    return tuple(Stage(**{**asdict(p), "threads": int(t["machine"].get("torch_threads", 1)),
-                          "env_steps": int(t["env_steps"]), "wall_clock_s": float(t["wall_clock_s"])})
+    return tuple(Stage(**{**asdict(p), "threads": t["torch_threads"], "env_steps": t["env_steps"],
+                          "wall_clock_s": t["wall_clock_s"]})
                  for p, t in zip(planned, kept))
 
 
@@ -146,23 +151,40 @@ def _records(records, root: Path, name: str, shipped_preset: str | None) -> tupl
     return tuple(out)
 
 
+def _read_history(path: Path) -> tuple[dict | None, str | None]:
+    """``(kept history or None, why it is not used or None)``: a missing file is no history; a file that does
+    not read as a history object is named with the reason (its run is planned all the same, untimed)."""
+    if not path.exists():
+        return None, None
+    data = read_bounded(path, what="kept history")
+    try:
+        history = json.loads(data)
+    except (ValueError, RecursionError) as e:  # not JSON: one error naming the file
+        raise ValueError(f"{path}: expected a JSON kept history, could not parse it ({e})") from None
+    if not isinstance(history, dict) or not isinstance(history.get("stages"), list):
+        return None, "its stages are malformed (expected an object with a list of stages)"
+    return history, None
+
+
 def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
     """``(runs, left out)``: a :class:`Run` for every recipe, seed in :data:`SEEDS` and kept stage, and
     ``(name, reason)`` for each kept history under ``root/results/training`` that no recipe makes."""
     root = Path(root)
     base = root / "results" / "training"
-    shipped = json.loads((root / "masp_lite/weights/manifest.json").read_text()) \
+    shipped = json.loads(read_bounded(root / "masp_lite/weights/manifest.json", what="manifest")) \
         if (root / "masp_lite/weights/manifest.json").exists() else {}
     shipped_by_history = {v["history"]: k for k, v in shipped.items() if not v.get("trained_on")}
     records = load_records(root / "results")
-    runs = []
+    runs, skipped = [], []
     for recipe in RECIPES.values():
         for stage in (s for s in recipe.stages if s.keep):
             for seed in SEEDS:
                 name = f"{stage.keep}-seed{seed}"
                 path = base / f"{name}.manifest.json"
                 preset = shipped_by_history.get(str(path.relative_to(root)))
-                history = json.loads(path.read_text()) if path.exists() else None
+                history, why = _read_history(path)
+                if why:
+                    skipped.append((name, why))
                 stages = _run_stages(recipe, stage, seed, history)
                 note = f"recipe {recipe.name}, stage {stage.name}, training seed {seed}"
                 if history is not None and stages[-1].wall_clock_s is not None:  # kept: its own note
@@ -170,7 +192,7 @@ def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
                 runs.append(Run(name, stages, preset is not None, note, _records(records, root, name, preset)))
     planned = {r.name for r in runs}
     kept = (str(p.relative_to(base))[: -len(".manifest.json")] for p in sorted(base.rglob("*.manifest.json")))
-    skipped = [(name, "no recipe makes it (masp_lite.recipes)") for name in kept if name not in planned]
+    skipped += [(name, "no recipe makes it (masp_lite.recipes)") for name in kept if name not in planned]
     return runs, skipped
 
 
@@ -182,16 +204,35 @@ def save_plan(runs, path) -> None:
 def load_plan(path) -> list[Run]:
     """A plan written by :func:`save_plan` (or by hand, in that form); one clear error otherwise."""
     try:
-        data = json.loads(Path(path).read_text())
+        data = json.loads(read_bounded(path, what="plan"))
         runs = [Run(**{**r, "stages": tuple(Stage(**s) for s in r["stages"]), "records": tuple(r["records"])})
                 for r in data]
         for r in runs:
             for s in r.stages:
                 TrainConfig.from_flat(s.config)
                 get_scenario(s.scenario)
-    except (OSError, ValueError, TypeError, KeyError) as e:
+        _check_plan_paths(runs)
+    except (OSError, ValueError, TypeError, KeyError, AttributeError, RecursionError) as e:
         raise ValueError(f"--plan {path}: expected a JSON list of runs as save_plan writes them ({e})") from None
     return runs
+
+
+def _check_plan_paths(runs) -> None:
+    """A plan writes only inside its root: every run name and record path relative, with no ``..``; records
+    under ``results/`` and ending ``.json``; every stage starting from random networks or an earlier stage."""
+    def inside(text, what):
+        parts = Path(str(text)).parts
+        if not isinstance(text, str) or not text or Path(text).is_absolute() or ".." in parts or "\\" in text:
+            raise ValueError(f"{what} {text!r}: expected a relative path inside the root, without '..'")
+        return parts
+    for r in runs:
+        inside(r.name, "run name")
+        for rel in r.records:
+            if inside(rel, "record")[0] != "results" or not rel.endswith(".json"):
+                raise ValueError(f"record {rel!r}: expected a results/....json path")
+        for k, s in enumerate(r.stages):
+            if s.init is not None and (not isinstance(s.init, int) or isinstance(s.init, bool) or not 0 <= s.init < k):
+                raise ValueError(f"run {r.name!r} stage {k + 1}: init {s.init!r}; expected an earlier stage's index")
 
 
 def _key(run: Run, k: int) -> str:
@@ -250,7 +291,7 @@ def describe(runs, skipped=(), workers: int = 1) -> str:
                  "worker(s)" + (f", {unknown} run(s) not timed yet" if unknown else "")
                  + "; the evaluations come on top")
     for name, why in skipped:
-        lines.append(f"  left out: {name}: {why} (its weights and records stay as they are)")
+        lines.append(f"  kept history not used: {name}: {why}")
     return "\n".join(lines)
 
 
@@ -270,7 +311,7 @@ def _train_stage(run: Run, k: int, root: Path, say) -> Path:
 
 
 def _remake(root: Path, rel: str, weights: Path, shipped: bool) -> None:
-    rec = json.loads((root / rel).read_text())
+    rec = json.loads(read_bounded(root / rel, what="record"))
     opts = dict(rec.get("method_options", {}))
     new = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
                    overrides=rec.get("overrides"), num_envs=rec.get("num_envs"),
@@ -313,6 +354,7 @@ def run_plan(runs, root, use_ray: bool | None = None, address: str | None = None
     ``use_ray``: None uses Ray when it is installed (else the runs go in turn, and ``say``
     tells how to install it), True requires it, False runs in turn. ``address``: a running
     Ray cluster (default: a local Ray on this machine's cores)."""
+    _check_plan_paths(runs)
     root = Path(root).resolve()
     tasks = _tasks(runs)
     if use_ray is not False:

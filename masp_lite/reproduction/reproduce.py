@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import re
 import textwrap
 from dataclasses import dataclass, field
@@ -32,6 +33,7 @@ import torch
 from ..envs import MPE2_WORLD, SCENARIOS, get_scenario, world_name
 from ..evaluation import evaluate
 from ..evaluation.tables import cell, render_rows
+from ..files import read_bounded
 from ..policies import METHODS
 from ..weights import base_scenario, read_manifest, shipped_entry, trained_preset
 from . import RESULTS_DIR
@@ -78,11 +80,13 @@ def load_records(root=RESULTS_DIR) -> list[dict]:
             "pass --records DIR)" if root == RESULTS_DIR else ""
         raise ValueError(f"records: expected a folder of evaluate records such as results/, got {str(root)!r}{where}")
     out = []
-    for path in sorted(root.rglob("*.json")):
+    for path in _json_files(root):
+        data = read_bounded(path, MAX_RECORD_BYTES, "JSON evaluation record")  # a FIFO or a device: refused
         try:
-            rec = json.loads(path.read_bytes())
-        except (ValueError, UnicodeDecodeError) as e:  # empty, truncated or binary
-            raise ValueError(f"{path}: expected a JSON evaluation record, could not parse it ({e})") from None
+            rec = json.loads(data)
+        except (ValueError, UnicodeDecodeError, RecursionError) as e:  # empty, truncated, binary or nested too deep
+            reason = "nested too deep" if isinstance(e, RecursionError) else str(e)
+            raise ValueError(f"{path}: expected a JSON evaluation record, could not parse it ({reason})") from None
         if not isinstance(rec, dict):
             raise ValueError(f"{path}: expected a JSON object (an evaluation record), got a {type(rec).__name__}")
         if "method" in rec and ({"seeds", "sr", "steps", "episodes_per_seed"} & set(rec)):  # meant as a record
@@ -94,6 +98,25 @@ def load_records(root=RESULTS_DIR) -> list[dict]:
                                 "world": rec.get("world", MPE2_WORLD),
                                 "decision_ms": v["ms"], "path": str(path)})
     return out
+
+
+#: The largest record read (a record is about a kilobyte).
+MAX_RECORD_BYTES = 4 * 2**20
+
+
+def _json_files(root: Path) -> list[Path]:
+    """Every ``*.json`` file under ``root``, through linked subfolders too (each real folder once), sorted.
+
+    A folder named ``x.json`` is walked into, not read; a link to nothing is kept, and refused by name."""
+    seen, found = set(), []
+    for folder, dirs, files in os.walk(root, followlinks=True):
+        real = os.path.realpath(folder)
+        if real in seen:  # a link back up: walked already
+            dirs[:] = []
+            continue
+        seen.add(real)
+        found += [Path(folder) / f for f in files if f.endswith(".json")]
+    return sorted(found)
 
 
 _STATS = ("sr", "steps", "cr", "decision_ms")
@@ -119,6 +142,9 @@ def validate_record(rec, path) -> dict:
         if key not in rec:
             bad(key, "present (an evaluate record has method, scenario, world, seeds, episodes_per_seed, "
                      "sr, steps, cr, decision_ms)", None)
+    for key in ("method", "scenario"):
+        if not isinstance(rec[key], str):
+            bad(key, "a name (a string)", rec[key])
     if rec["method"] not in METHODS:
         bad("method", f"one of {sorted(METHODS)}", rec["method"])
     overrides = rec.get("overrides", {})

@@ -10,7 +10,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..weights import atomic_write_bytes, read_weights, sha256, trained_world
+from ..files import read_bounded
+from ..weights import atomic_write_bytes, file_bytes, read_weights, sha256, trained_world
 
 __all__ = ["ship_run", "ship_zero_shot"]
 
@@ -19,17 +20,27 @@ _RUN_INFO = ("command", "seed", "init", "iterations", "env_steps", "wall_clock_s
 _RUN_EXTRA = ("last_command", "overrides", "world", "method")  # absent from older manifests
 
 
+def _json(path):
+    """A JSON file read through the one bounded reader (a regular file, of bounded size)."""
+    return json.loads(read_bounded(path, what="JSON file"))
+
+
+def _curves(path) -> bytes | None:
+    """A run's ``progress.csv`` (bounded read), or ``None`` when it has none."""
+    return read_bounded(path, what="progress.csv") if Path(path).exists() else None
+
+
 def _run_info(m: dict) -> dict:
     return {**{k: m[k] for k in _RUN_INFO}, **{k: m[k] for k in _RUN_EXTRA if k in m}}
 
 
 def _read_run(manifest, progress):
     """``(scenario, run information, curves bytes or None)`` of one finished run."""
-    sm = json.loads(Path(manifest).read_text())
+    sm = _json(manifest)
     missing = [key for key in _RUN_INFO if key not in sm]
     if missing:
         raise ValueError(f"{manifest}: expected a run manifest; missing {missing}")
-    return sm.get("scenario"), _run_info(sm), Path(progress).read_bytes() if Path(progress).exists() else None
+    return sm.get("scenario"), _run_info(sm), _curves(progress)
 
 
 def _earlier_runs(earlier):
@@ -37,12 +48,12 @@ def _earlier_runs(earlier):
     out = []
     for item in earlier:
         if isinstance(item, (str, Path)):  # a kept history: every stage, with its curves
-            history = json.loads(Path(item).read_text())
+            history = _json(item)
             if "stages" not in history:
                 raise ValueError(f"{item}: expected a training history (SCENARIO-seedS.manifest.json)")
             for st in history["stages"]:
                 curves = Path(item).parent / st["progress"]
-                out.append((st["scenario"], st["training"], curves.read_bytes() if curves.exists() else None))
+                out.append((st["scenario"], st["training"], _curves(curves)))
         else:
             out.append(_read_run(*item))
     return out
@@ -55,7 +66,7 @@ def ship_zero_shot(weights_dir, scenario: str, source: str, note: str) -> dict:
     ``weights_dir/manifest.json`` copies ``source``'s (file, hash, history) and adds
     ``"trained_on": source`` and ``note`` (why no weights of its own ship). Returns the entry."""
     manifest_path = Path(weights_dir) / "manifest.json"
-    manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
+    manifest = _json(manifest_path) if manifest_path.exists() else {}
     if source not in manifest or manifest[source].get("trained_on"):
         raise ValueError(f"ship_zero_shot: expected shipped weights trained on {source!r}; the manifest has "
                          f"{sorted(k for k, v in manifest.items() if not v.get('trained_on'))}")
@@ -92,7 +103,7 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
     run_dir, history_dir = Path(run_dir), Path(history_dir)
     if not (run_dir / "manifest.json").exists():
         raise ValueError(f"{run_dir}: expected a finished run (manifest.json)")
-    m = json.loads((run_dir / "manifest.json").read_text())
+    m = _json(run_dir / "manifest.json")
     rec = read_weights(run_dir / "weights.pt")
     name, seed = rec["scenario"], int(m["seed"])
     stem = f"{name}-seed{seed}"
@@ -103,7 +114,7 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
         if curves is not None:
             atomic_write_bytes(history_dir / target, curves)
         stages.append({"scenario": scenario, "training": info, "progress": target})
-    data = (run_dir / "weights.pt").read_bytes()
+    data = file_bytes(run_dir / "weights.pt")  # as read_weights checked it
     if weights_dir is None:
         file, target = f"{stem}.pt", history_dir / f"{stem}.pt"
     else:
@@ -116,7 +127,7 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
     _write_json(history_dir / f"{stem}.manifest.json", history)
     if weights_dir is not None:
         manifest_path = Path(weights_dir) / "manifest.json"
-        manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
+        manifest = _json(manifest_path) if manifest_path.exists() else {}
         runs = [st["training"] for st in stages]
         manifest[name] = {"file": file, "sha256": digest, "scenario": name, "world": trained_world(rec),
                           "arch": rec["arch"], "seed": seed,

@@ -41,6 +41,8 @@ import matplotlib
 import numpy as np
 import torch
 
+from ..files import atomic_target
+
 __all__ = ["record", "episode_numbers", "CONTROLS_PX", "draw_frame", "draw_obs", "frame_from_obs", "current_goals",
            "legend", "animate", "player",
            "save", "Scene", "COLOURS", "MIN_AGENT_PT"]
@@ -366,6 +368,6 @@ def save(anim, path, fps: int | None = None) -> Path:
         writer = FFMpegWriter(fps=fps)
     else:
         raise ValueError(f"{path.name}: expected a .gif or .mp4 file name")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(str(path), writer=writer)
+    with atomic_target(path) as tmp:  # the encoder writes a temporary file beside it, renamed when whole
+        anim.save(str(tmp), writer=writer)
     return path

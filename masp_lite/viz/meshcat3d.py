@@ -48,6 +48,8 @@ import warnings
 
 import numpy as np
 
+from ..files import atomic_write
+
 __all__ = ["record_episode", "build_scene", "episode_html", "key_html", "play_to_html", "notebook_html",
            "marker_radius", "drone_scale", "RecordingWindow", "LiveViewer"]
 
@@ -307,8 +309,7 @@ def episode_html(episode: dict, key: bool = True) -> str:
 def play_to_html(method, scenario, out, seed: int = 0, **overrides) -> str:
     """Record one episode of ``method`` on ``scenario`` and write it as a standalone page ``out``."""
     page = episode_html(record_episode(method, scenario, seed=seed, **overrides))
-    with open(out, "w", encoding="utf-8") as f:
-        f.write(page)
+    atomic_write(out, page)
     return str(out)
 
 

@@ -20,6 +20,7 @@ import torch
 
 from ..envs import get_scenario, make
 from ..evaluation.metrics import EpisodeLog, collision_rate, reached_target, steps, success_rate
+from ..files import atomic_write
 from ..policies import build_policy, get_factory
 from ..policies import method_options as options_of
 
@@ -68,7 +69,7 @@ def play(method: str, scenario: str, out, seed: int = 0, overrides=None, method_
                              "and meshcat to be installed, or a .gif/.mp4 output") from None
         out.parent.mkdir(parents=True, exist_ok=True)
         episode = meshcat3d.record_episode(method, scenario, seed=seed, **overrides)
-        out.write_text(meshcat3d.episode_html(episode), encoding="utf-8")
+        atomic_write(out, meshcat3d.episode_html(episode))
         return out, summary(episode["log"])
     from .anim2d import animate, record, save
 

@@ -25,11 +25,14 @@ are read by the reproduction room (:mod:`masp_lite.reproduction.histories`).
 from __future__ import annotations
 
 import csv
+import io
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from ..files import read_bounded
 
 __all__ = ["read_progress", "last_evaluation", "plot_progress", "plot_history", "plot_seed_bands", "ProgressLine"]
 
@@ -108,10 +111,10 @@ def read_progress(path) -> dict[str, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"read_progress: expected an existing progress.csv, got {str(path)!r}")
-    with open(path, newline="") as f:
-        reader = csv.DictReader(f)
-        rows = list(reader)
-        fields = reader.fieldnames or []
+    reader = csv.DictReader(io.StringIO(read_bounded(path, what="progress.csv").decode("utf-8", "replace"),
+                                        newline=""))
+    rows = list(reader)
+    fields = reader.fieldnames or []
     if not fields or not rows:
         raise ValueError(f"read_progress: {path.name} has no rows (expected a header and one row per iteration)")
     columns = {}

@@ -18,7 +18,11 @@ wall-clock summed over every stage, and where the whole training history is kept
 (``results/training/SCENARIO-seedS.manifest.json`` in the repository: every stage's
 command, configuration, machine and curves). :func:`load_weights` refuses (one clear
 ``ValueError``) a missing, truncated or corrupt file, a file whose hash differs from the
-manifest, another architecture, or weights trained for another scenario. Scenarios with a
+manifest, another architecture, or weights trained for another scenario; and before anything
+is allocated, a file that could exhaust memory: over :data:`MAX_WEIGHTS_BYTES`, not a regular
+file, compressed entries (a deflate bomb), a tensor that claims more elements than its bytes
+(stride 0), architecture settings beyond :data:`ARCH_BOUNDS`, or tensors that are not real
+floating point (never cast). Scenarios with a
 team change, or with overrides such as ``num_agents=100``, use the weights of the preset
 they start from (``mpe-20to10`` -> ``mpe-20``): the networks are size-invariant, and
 this is the paper's zero-shot protocol. A manifest entry may also ship another preset's
@@ -34,15 +38,15 @@ import functools
 import hashlib
 import io
 import json
-import os
 import re
-import tempfile
 import textwrap
+import zipfile
 from pathlib import Path
 
 import torch
 
 from ..envs.scenarios import MPE2_WORLD, get_scenario, world_name
+from ..files import atomic_write, read_bounded
 from ..nets.masp import MASPNets
 
 __all__ = ["FORMAT", "HERE", "MANIFEST", "METHODS_DIR", "save_weights", "load_weights", "read_weights",
@@ -56,6 +60,12 @@ MANIFEST = HERE / "manifest.json"
 METHODS_DIR = HERE / "methods"
 _BASE = {"mpe-20to10": "mpe-20", "mpe-50to20": "mpe-50", "drone-20to10": "drone-20"}
 _ZIP_MAGIC, _PICKLE_MAGIC = b"PK", b"\x80"  # torch.save's zip archive; its legacy pickle format
+#: The largest weights file read (the shipped ones are about 0.2 MB): checked before anything is loaded.
+MAX_WEIGHTS_BYTES = 64 * 2**20
+#: The largest value of each architecture setting a weights file may declare, checked before any network
+#: is built (the shipped networks: width 32, one GCN layer, groups of 3): larger ones would take gigabytes.
+ARCH_BOUNDS = {"width": 1024, "group_size": 64, "gcn_layers": 16, "obstacles_seen": 64, "global_step": 1000,
+               "neighbours_seen": 64, "team_size": 4096}
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 #: How to use weights trained elsewhere anyway, in both spellings: the one of the command line and Python's.
 _ANYWAY = "to use them anyway: --set any_scenario=true on the command line, any_scenario=True in Python"
@@ -82,36 +92,29 @@ def trained_preset(scenario) -> str:
 
 
 @functools.lru_cache(maxsize=64)
-def _read(path: str, mtime_ns: int, size: int) -> bytes:
-    return Path(path).read_bytes()
+def _read(path: str, stamp: tuple) -> bytes:
+    return read_bounded(path, MAX_WEIGHTS_BYTES, "weights file")
 
 
 def file_bytes(path) -> bytes:
-    """A file's bytes, read from disk once while it is unchanged (its hash, its check and its load share them)."""
-    st = Path(path).stat()
-    return _read(str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
+    """A file's bytes, read from disk once while it is unchanged (its hash, its check and its load share them).
+
+    Unchanged means the same inode, size, modification and change time: a copy that keeps the
+    modification time (``cp -p``) still changes the change time, which no user can set back.
+    Only a regular file of at most :data:`MAX_WEIGHTS_BYTES` is read (:func:`masp_lite.files.read_bounded`)."""
+    try:
+        st = Path(path).stat()
+    except OSError:
+        return read_bounded(path, MAX_WEIGHTS_BYTES, "weights file")  # its one clear error
+    return _read(str(Path(path).resolve()), (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns))
 
 
 def sha256(path) -> str:
     return hashlib.sha256(file_bytes(path)).hexdigest()
 
 
-def atomic_write_bytes(path, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``path``, then ``os.replace`` it in one step."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        os.chmod(tmp, 0o644)
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+#: The one atomic write (:func:`masp_lite.files.atomic_write`), under the name its callers here import.
+atomic_write_bytes = atomic_write
 
 
 def save_weights(path, nets, scenario) -> None:
@@ -205,9 +208,14 @@ def read_weights(path) -> dict:
     head = data[:4]
     if not head:
         raise ValueError(f"checkpoint {str(path)!r}: the file is empty; expected a MASP weights file")
-    if not head.startswith((_ZIP_MAGIC, _PICKLE_MAGIC)):
+    if head.startswith(_PICKLE_MAGIC):
+        raise ValueError(f"checkpoint {str(path)!r}: saved in torch's legacy (pre-1.6) format, whose declared sizes "
+                         "cannot be checked before loading; expected torch.save's zip archive (load it in a trusted "
+                         "session and save it again)")
+    if not head.startswith(_ZIP_MAGIC):
         raise ValueError(f"checkpoint {str(path)!r}: not a torch file (it starts with {head!r}); expected a MASP "
                          "weights file saved by torch.save, such as a run's weights.pt")
+    _check_archive(path, data)
     try:
         rec = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     except Exception as e:  # truncated zip, objects weights_only refuses, ...
@@ -219,10 +227,59 @@ def read_weights(path) -> dict:
     if not isinstance(rec, dict) or rec.get("format") != FORMAT:
         raise ValueError(f"checkpoint {str(path)!r}: expected format {FORMAT!r}, got "
                          f"{rec.get('format') if isinstance(rec, dict) else type(rec).__name__!r}")
-    for name, t in (rec.get("state_dict") or {}).items():
-        if isinstance(t, torch.Tensor) and t.is_floating_point() and not bool(torch.isfinite(t).all()):
-            raise ValueError(f"checkpoint {str(path)!r}: parameter {name!r} holds NaN or inf; expected finite weights")
+    _check_record(path, rec)
     return rec
+
+
+def _check_archive(path: Path, data: bytes) -> None:
+    """Refuse a zip archive that would unpack to more than the file holds (a deflate bomb) before torch reads it.
+
+    ``torch.save`` stores every entry uncompressed, so each entry's size is at most the file's; torch
+    itself refuses a tensor storage that declares more bytes than its entry has."""
+    try:
+        entries = zipfile.ZipFile(io.BytesIO(data)).infolist()
+    except (zipfile.BadZipFile, ValueError, OSError):
+        return  # truncated or damaged: torch's reader says why (it reads nothing of such an archive)
+    for e in entries:
+        if e.compress_type != zipfile.ZIP_STORED or e.file_size > len(data):
+            raise ValueError(f"checkpoint {str(path)!r}: entry {e.filename!r} is compressed ({e.file_size:,} bytes "
+                             f"unpacked from {e.compress_size:,}); expected torch.save's uncompressed archive")
+
+
+def _check_record(path: Path, rec: dict) -> None:
+    """The fields of a weights record, each of its type, and every tensor a dense, finite, floating-point
+    one of the size its bytes hold (a stride-0 tensor of 10**9 elements on one number is refused before
+    anything reads it)."""
+    for key, typ, what in (("scenario", str, "a preset name"), ("arch", dict, "a dict of NetConfig settings"),
+                           ("state_dict", dict, "a dict of tensors")):
+        if not isinstance(rec.get(key), typ):
+            got = "missing" if key not in rec else f"a {type(rec[key]).__name__}"
+            raise ValueError(f"checkpoint {str(path)!r}: field {key!r} is {got}; expected {what}")
+    if not isinstance(rec.get("world", {}), dict):
+        raise ValueError(f"checkpoint {str(path)!r}: field 'world' is a {type(rec['world']).__name__}; "
+                         "expected a dict (the world definition)")
+    for name, t in rec["state_dict"].items():
+        where = f"checkpoint {str(path)!r}: state_dict entry {name!r}"
+        if not isinstance(name, str) or not isinstance(t, torch.Tensor):
+            raise ValueError(f"{where} is a {type(t).__name__}; expected a tensor under a parameter name")
+        if not t.dtype.is_floating_point:
+            raise ValueError(f"{where} is {t.dtype}; expected floating-point weights (they are not cast)")
+        if t.layout != torch.strided or not t.is_contiguous() or \
+                t.untyped_storage().nbytes() < (t.storage_offset() + t.numel()) * t.element_size():
+            raise ValueError(f"{where} has shape {tuple(t.shape)} and strides {t.stride()}, more elements than its "
+                             "stored bytes; expected a dense tensor as torch.save writes a parameter")
+    for name, t in rec["state_dict"].items():
+        if not bool(torch.isfinite(t).all()):
+            raise ValueError(f"checkpoint {str(path)!r}: parameter {name!r} holds NaN or inf; expected finite weights")
+
+
+def check_arch(arch: dict, path) -> None:
+    """Refuse architecture settings beyond :data:`ARCH_BOUNDS` before a network is built from them."""
+    for key, high in ARCH_BOUNDS.items():
+        v = arch.get(key)
+        if isinstance(v, int) and not isinstance(v, bool) and v > high:
+            raise ValueError(f"checkpoint {str(path)!r}: arch field {key!r} is {v}; expected at most {high} "
+                             "(larger networks than any masp-lite trains)")
 
 
 def _run_manifest(path: Path) -> dict | None:
@@ -231,8 +288,8 @@ def _run_manifest(path: Path) -> dict | None:
     if path.name != "weights.pt" or not manifest.is_file():
         return None
     try:
-        m = json.loads(manifest.read_text())
-    except (ValueError, OSError):
+        m = json.loads(read_bounded(manifest, what="run manifest"))
+    except (ValueError, OSError, RecursionError):
         return None
     return m if isinstance(m, dict) and isinstance(m.get("weights_sha256"), str) else None
 
@@ -250,6 +307,7 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
             raise ValueError("load_weights: expected a path or a scenario")
         path = default_checkpoint(scenario)
     rec = read_weights(path)
+    check_arch(rec["arch"], path)
     kind = "drone" if rec["arch"].get("action", "discrete") != "discrete" else "particle"
     want = None if scenario is None else (get_scenario(scenario) if isinstance(scenario, str) else scenario).kind
     if want is not None and kind != want:
@@ -268,6 +326,10 @@ def load_weights(path=None, scenario=None, any_scenario: bool = False):
         if kind == "drone":
             from ..nets.drones import DroneNets  # MuJoCo only for drone weights
         nets = (DroneNets if kind == "drone" else MASPNets)(**rec["arch"])
+        own = nets.state_dict()
+        for name, t in rec["state_dict"].items():
+            if name in own and t.dtype != own[name].dtype:
+                raise ValueError(f"parameter {name!r} is {t.dtype}, the networks' is {own[name].dtype}")
         nets.load_state_dict(rec["state_dict"])
     except (TypeError, ValueError, RuntimeError, KeyError) as e:
         raise ValueError(f"checkpoint {str(path)!r}: architecture does not match MASPNets "

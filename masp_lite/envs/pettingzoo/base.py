@@ -6,6 +6,8 @@ import warnings
 
 from pettingzoo import ParallelEnv
 
+from ..checks import reset_options
+
 __all__ = ["WorldParallelEnv"]
 
 
@@ -34,7 +36,7 @@ class WorldParallelEnv(ParallelEnv):
         it would start an episode the caller did not ask for. Any other unknown key is ignored
         with a warning, because PettingZoo's API lets options be environment-specific and its
         own ``parallel_api_test`` resets with ``options={"options": 1}``."""
-        options = dict(options or {})
+        options = reset_options(options)
         unknown = sorted(set(options) - set(self.reset_options), key=str)
         for key in unknown:
             near = difflib.get_close_matches(str(key), list(self.reset_options), n=1, cutoff=0.6)

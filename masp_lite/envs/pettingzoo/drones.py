@@ -42,6 +42,7 @@ import gymnasium
 import numpy as np
 import torch
 
+from ..checks import real_array
 from ..drones import DroneWorld
 from ..scenarios import Scenario
 from .base import WorldParallelEnv
@@ -92,7 +93,7 @@ class DroneParallelEnv(WorldParallelEnv):
             raise ValueError(f"step: expected a dict with one action for each live drone {self.agents}")
         full = np.full((1, self._world.num_agents, 4), -1.0)  # drones that left: motors off (ignored anyway)
         for name, a in actions.items():
-            value = np.asarray(a.detach().cpu() if torch.is_tensor(a) else a, dtype=np.float64)
+            value = real_array(a, f"step: action of {name!r}")
             if value.shape != (4,):
                 raise ValueError(f"step: action of {name!r}: expected 4 motor commands, got shape {value.shape}")
             full[0, self._index[name]] = value
