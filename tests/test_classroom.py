@@ -158,17 +158,17 @@ def test_screen_passes_every_answer_of_the_course_and_refuses_each_family():
 #: The forgeries graded in the cycle, by family: each replaces one answer cell of an otherwise solved notebook.
 FORGERIES = {
     "copy": {   # the reference copied at run time: its source, a holder made before the check, a rebuilt function
-        "cost_matrix": "import inspect\nexec(inspect.getsource(assignment.distance_matrix).replace('distance_matrix', "
-                       "'cost_matrix'))",
+        "hungarian": "import inspect\nexec(inspect.getsource(assignment.hungarian).replace('def hungarian', "
+                     "'def my_hungarian'))",
         "choose_action": "def choose_action(vel, desired_vel, _keep=reference.velocity_to_action):\n"
                          "    return _keep(vel, desired_vel)",
         "my_bottleneck": "my_bottleneck = type(team.bottleneck)(team._bottleneck_one.__code__, {'np': np})",
     },
     "run": {   # the instructor's notebook read from the course folder, IPython's hooks rewrite the check cells
                # before they run, the checker patched from the answer cell
-        "cost_matrix": "def cost_matrix(agent_pos, goal_pos):\n"
-                       "    with open('../../../source/02_goal_assignment/02_goal_assignment.ipynb') as f:\n"
-                       "        raise NotImplementedError(str(f))",
+        "hungarian": "def my_hungarian(agent_pos, goal_pos, agent_mask, goal_mask):\n"
+                     "    with open('../../../source/02_goal_assignment/02_goal_assignment.ipynb') as f:\n"
+                     "        raise NotImplementedError(str(f))",
         "choose_action": "get_ipython().input_transformers_post.append(lambda lines: ['pass\\n'])\n"
                          "def choose_action(vel, desired_vel):\n    return vel",
         "my_bottleneck": "import masp_lite.course as c\nc.assert_passed = lambda name: None\n"
@@ -226,10 +226,11 @@ def test_instructor_cycle_grades_honest_partial_and_forged_submissions(tmp_path)
 
     _submit(folder, "ada", _solved(folder, answers))                 # every exercise solved
     _submit(folder, "bob", release)                                  # the release, untouched
-    assert "np.sqrt((diff ** 2).sum(axis=-1))" in answers["cost_matrix"]
-    squared = answers["cost_matrix"].replace("np.sqrt((diff ** 2).sum(axis=-1))", "(diff ** 2).sum(axis=-1)")
+    distances = "d = np.linalg.norm(a[b, rows][:, None, :] - g[b, cols][None, :, :], axis=-1)"
+    assert distances in answers["hungarian"]
+    squared = answers["hungarian"].replace(distances, distances + " ** 2")        # squared costs: another assignment
     # a partial attempt: one exercise wrong; the learner asked for the controller's answer before solving it
-    cy = _solved(folder, answers, cost_matrix=squared)
+    cy = _solved(folder, answers, hungarian=squared)
     asked = next(c for c in cy.cells if c.source.startswith('course.reveal("h-greedy controller"'))
     asked.source = asked.source[:-1] + ", now=True)"
     asked.outputs = [nbformat.v4.new_output("display_data", data={"text/plain": "def velocity_to_action(...): ..."},
@@ -239,22 +240,24 @@ def test_instructor_cycle_grades_honest_partial_and_forged_submissions(tmp_path)
     assert "nxt = vel.unsqueeze(-2)" in answers["choose_action"]
     warns = answers["choose_action"].replace("nxt = vel.unsqueeze(-2)", "nxt = torch.tensor(vel).unsqueeze(-2)")
     _submit(folder, "eve", _solved(folder, answers, choose_action=warns))
-    # deleted and stripped cells: the cost matrix's check deleted (its answer calls the library's version), the
+    # deleted and stripped cells: the assignment's check deleted (its answer calls the library's version), the
     # controller's answer stripped of its nbgrader metadata (found by its cell id), the min-max answer deleted
-    fay = _solved(folder, answers, cost_matrix=answers["cost_matrix"].replace(
-        "    return np.sqrt((diff ** 2).sum(axis=-1))", "    return assignment.distance_matrix(agent_pos, goal_pos)"))
+    fay = _solved(folder, answers, hungarian=answers["hungarian"].replace(
+        "    return torch.from_numpy(out)",
+        "    return assignment.hungarian(agent_pos, goal_pos, agent_mask, goal_mask)"))
     del _cells_by_id(fay)["choose_action"].metadata["nbgrader"]
     fay.cells = [c for c in fay.cells if c.metadata.get("nbgrader", {}).get("grade_id")
-                 not in ("check_cost_matrix", "my_bottleneck")]
+                 not in ("check_hungarian", "my_bottleneck")]
     _submit(folder, "fay", fay)
     for family, forged in FORGERIES.items():                        # each family of forgery
         _submit(folder, f"forged-{family}", _solved(folder, answers, **forged))
     # the inputs and the reference edited in their (unlocked) cells so that wrong answers pass, a cell added
     # between an answer and its check that patches the checker
-    edited = _solved(folder, answers, cost_matrix=squared,
+    edited = _solved(folder, answers, hungarian=squared,
                      my_bottleneck="def my_bottleneck(dist):\n    return linear_sum_assignment(dist)")
     cells = {c.get("id"): c for c in edited.cells}
-    cells["c27"].source = "def cost_cases(seed):\n    return np.zeros((1, 1, 2)), np.zeros((1, 1, 2))"
+    cells["ex1-cases"].source = ("def hungarian_cases(seed):\n"
+                                 "    return torch.zeros(1, 1, 2), torch.zeros(1, 1, 2), None, None")
     cells["ex3-cases"].source = cells["ex3-cases"].source.replace(
         "def library_trips(agent_pos, goal_pos):", "library_trips = lambda a, g: trips_of(my_bottleneck)(a, g)\n\n\n"
         "def _unused(agent_pos, goal_pos):")
@@ -267,7 +270,7 @@ def test_instructor_cycle_grades_honest_partial_and_forged_submissions(tmp_path)
     config = folder / "nbgrader_config.py"
     assert 'c.UseReleaseCells.screened = "zero"' in config.read_text().replace("'", '"')
     config.write_text(config.read_text().replace("screened = 'zero'", "screened = 'manual'"))
-    _submit(folder, "gil", _solved(folder, answers, cost_matrix=FORGERIES["copy"]["cost_matrix"]))
+    _submit(folder, "gil", _solved(folder, answers, hungarian=FORGERIES["copy"]["hungarian"]))
     _nbgrader(folder, "autograde", CHAPTER, "--student=gil")
     _nbgrader(folder, "generate_feedback", CHAPTER)
     export = _nbgrader(folder, "export")
@@ -275,7 +278,7 @@ def test_instructor_cycle_grades_honest_partial_and_forged_submissions(tmp_path)
         grades = {row["student_id"]: row for row in csv.DictReader(f)}
     score = {s: float(row["score"]) for s, row in grades.items()}
     assert all(float(row["max_score"]) == total for row in grades.values())
-    cost, controller = points["check_cost_matrix"], points["check_choose_action"]
+    cost, controller = points["check_hungarian"], points["check_choose_action"]
     assert score == {"ada": total, "bob": 0.0, collected[0]: 0.0, "cy": total - cost, "eve": total,
                      "fay": controller, "forged-copy": 0.0, "forged-run": 0.0, "forged-cells": controller,
                      "gil": total - cost}, score
@@ -294,7 +297,7 @@ def test_instructor_cycle_grades_honest_partial_and_forged_submissions(tmp_path)
     assert "UserWarning" in feedback and "warnings cost no points" in feedback
     feedback = _feedback(folder, "fay")
     assert "which the check makes unavailable" in feedback
-    assert "the check cell 'check_cost_matrix' was deleted" in feedback
+    assert "the check cell 'check_hungarian' was deleted" in feedback
     assert "the answer cell 'choose_action' had lost its nbgrader metadata" in feedback
     assert "the answer cell 'my_bottleneck' was deleted from the submission: graded as not attempted" in feedback
     reasons = {"forged-copy": ["imports inspect", "default argument that is not a constant", "attribute .__code__"],
@@ -305,12 +308,12 @@ def test_instructor_cycle_grades_honest_partial_and_forged_submissions(tmp_path)
             assert "ScreenedAnswer" in feedback and reason in feedback, (student, reason)
     feedback = _feedback(folder, "forged-cells")
     assert "differs from the release" in feedback and "you added were not run" in feedback
-    assert "cost matrix failed on case 0" in feedback and "min-max assignment failed" in feedback
-    assert "sent to manual grading: the answer cell 'cost_matrix' imports inspect" in _feedback(folder, "gil")
+    assert "Hungarian assignment failed on case 0" in feedback and "min-max assignment failed" in feedback
+    assert "sent to manual grading: the answer cell 'hungarian' imports inspect" in _feedback(folder, "gil")
 
     # export names every deleted, stripped or screened cell, one line each
     out = export.stdout
-    assert "fay 02_goal_assignment/02_goal_assignment: ⚑ the check cell 'check_cost_matrix' was deleted" in out
+    assert "fay 02_goal_assignment/02_goal_assignment: ⚑ the check cell 'check_hungarian' was deleted" in out
     assert "fay 02_goal_assignment/02_goal_assignment: ⚑ the answer cell 'choose_action' had lost" in out
     assert "fay 02_goal_assignment/02_goal_assignment: ⚑ the answer cell 'my_bottleneck' was deleted" in out
     assert "forged-run 02_goal_assignment/02_goal_assignment: ⚑ screened, scored zero: the answer cell " \

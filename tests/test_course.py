@@ -383,3 +383,19 @@ def test_nbgrader_generate_assignment_accepts_solutions_and_agrees(tmp_path):
             if "nbgrader" in meta and meta["nbgrader"].get("grade"):
                 assert meta.pop("tags") == ["raises-exception"]
             assert dict(r.metadata) == meta
+
+
+def test_every_chapter_is_listed_in_the_course_maps():
+    """notebooks/README.md's table, the README's chapter list and chapter 00's course map name every chapter."""
+    numbers = [p.stem.split("_", 1)[0] for p in SOLUTIONS]
+    table = (ROOT / "notebooks" / "README.md").read_text(encoding="utf-8")
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    readme = readme[readme.index("## The course"):readme.index("Every chapter follows the same pattern")]
+    tour = nbformat.read(ROOT / "solutions" / "00_tour.ipynb", as_version=4)
+    course_map = next(c.source for c in tour.cells if c.cell_type == "markdown" and "| chapter | builds |" in c.source)
+    for number, path in zip(numbers, SOLUTIONS):
+        assert f"`{path.name}`" in table, f"notebooks/README.md does not list {path.name}"
+        listed = f"chapter {number})" in readme or f"chapter {number};" in readme
+        assert listed, f"README.md does not list chapter {number}"
+        if number != "00":
+            assert f"\n| {number} " in course_map, f"chapter 00's course map does not list chapter {number}"

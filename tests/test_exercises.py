@@ -133,17 +133,17 @@ CHEATS = {
     "quick_evaluate": 'record = ev.evaluate(method, scenario, episodes=episodes, seeds=(seed,))\n'
                       'return record["sr"]["mean"], record["steps"]["mean"], record["cr"]["mean"]',
     "physics_step": 'w = make("mpe-5", num_envs=pos.shape[0], num_agents=pos.shape[1], num_obstacles=0,\n'
-                    '         world_size=20.0, seed=0, **MPE2_WORLD)\n'
+                    '         world_size=20.0, seed=0, integration=integration)\n'
                     'w.reset(options={"agent_pos": pos, "agent_vel": vel})\n'
                     'obs, _ = w.step(actions)\n'
                     'return obs["agent_pos"], obs["agent_vel"]',
     "contact_force": "return particle.contact_force(delta, dist, dist_min)",
     "episode_metrics": "return ev.success_rate(log), ev.steps(log), ev.collision_rate(log)",
-    "cost_matrix": "return assignment.distance_matrix(agent_pos, goal_pos)",
+    "hungarian": "return assignment.hungarian(agent_pos, goal_pos, agent_mask, goal_mask)",
     "choose_action": "return reference.velocity_to_action(vel, desired_vel)",
     "my_bottleneck": "return team._bottleneck_one(dist)",
     "s_inter": "return encoders.s_inter(query, key, mask)",
-    "node_update": "return encoders.node_update(x, value, s, update_mlp)",
+    "self_encoder": "return encoder(x, mask)",
     "cross_scores": "return torch.softmax(cross(y_a, y_t, dist), dim=-1)",
     "goal_matcher_reward": "return rewards.goal_matcher_reward(agent_pos, goal_pos, goals, alive)",
     "group_division": "return fusion.group_division(perm, group_size)",
@@ -155,7 +155,11 @@ CHEATS = {
     "value_norm": "norm = mappo.ValueNorm(beta=beta)\nfor batch in batches:\n    norm.update(batch)\n"
                   "return norm.normalize(x)",
     "value_loss": "return mappo.value_loss(values, old_values, targets, clip, delta, mask)",
-    "sample": "return sample(logits, generator)",
+    "discounted_returns": "return primer.discounted_returns(rewards, gamma, not_done)",
+    "reinforce_loss": "return primer.reinforce_loss(logits, actions, advantages)",
+    "train_stage": "return train_stage_at(recipe_name, stage_name, seed, out, iterations, worlds, init=init)",
+    "evaluate_nets": 'numbers = evaluate_nets(nets, scenario, episodes=episodes, seed=seed)\n'
+                     'return {key: numbers[key] for key in ("sr", "steps", "cr")}',
     "orca_halfplane": "return orca.orca_halfplanes(rel_pos, rel_vel, vel, combined_radius, responsibility,\n"
                       "                           time_horizon, time_step)",
     "rewire_step": "better = rrt_star.rewire(nodes, cost, parent, new, near, free)\nreturn better, cost, parent",
@@ -215,3 +219,23 @@ def test_every_graded_exercise_refuses_a_call_to_the_library(path, tmp_path, mon
               for o in c.outputs if o.output_type == "error"]
     assert broken == [], broken
     assert os.environ["MASP_LITE_FAST"] == "1"
+
+
+#: Answers still shorter than three lines of code, to be deepened (issue 53): chapter 09's input
+#: size, chapter 10's agent order, chapter 11's crash charge (chapter 11 is being rewritten), chapter
+#: 13's finished episodes. No other exercise may join them.
+SHORT_ANSWERS_LEFT = {"htamp_inputs", "agent_first", "crash_charge", "finished_episodes"}
+
+
+def test_every_reference_answer_is_at_least_three_lines_of_code():
+    """An exercise asks for a step the learner reasons out, not one broadcast or one formula."""
+    short = {}
+    for path in SOLUTIONS:
+        for cell in nbformat.read(path, as_version=4).cells:
+            if not _grade(cell).get("solution"):
+                continue
+            body = cell.source.split("### BEGIN SOLUTION")[1].split("### END SOLUTION")[0]
+            lines = [line for line in body.splitlines() if line.strip() and not line.strip().startswith("#")]
+            if len(lines) < 3:
+                short[_grade(cell)["grade_id"]] = (path.name, len(lines))
+    assert set(short) <= SHORT_ANSWERS_LEFT, {k: v for k, v in short.items() if k not in SHORT_ANSWERS_LEFT}

@@ -2,8 +2,8 @@
 
 Layers, lowest first: ``files`` (the one atomic write, the one bounded reader) -> ``envs``, ``config`` and
 ``threads`` -> ``parsing`` -> ``nets`` / ``planners`` -> ``algos`` / ``weights`` -> ``policies`` -> ``evaluation`` /
-``training`` / ``viz`` / ``course`` -> ``recipes`` -> ``reproduction``
-(the only code that knows the repository: records, paper numbers, the training plan) -> ``bench``
+``training`` / ``viz`` / ``course`` / ``primer`` -> ``recipes`` -> ``budgets`` (a recipe's stage at another budget)
+-> ``reproduction`` (the only code that knows the repository: records, paper numbers, the training plan) -> ``bench``
 (timings beside the paper's) -> ``cli``. A module
 may import its own package and anything in a lower layer; imports inside functions (lazy
 ones) count too.
@@ -19,8 +19,8 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "masp_lite"
 LAYER = {"files": -1, "envs": 0, "config": 0, "threads": 0, "parsing": 0.5, "nets": 1, "planners": 1, "algos": 2,
-         "weights": 2, "policies": 3, "evaluation": 4, "training": 5, "viz": 5, "course": 5, "recipes": 5.2,
-         "reproduction": 5.5, "bench": 5.7, "cli": 6, "__main__": 7, "__init__": 7}
+         "weights": 2, "policies": 3, "evaluation": 4, "training": 5, "viz": 5, "course": 5, "primer": 5,
+         "recipes": 5.2, "budgets": 5.3, "reproduction": 5.5, "bench": 5.7, "cli": 6, "__main__": 7, "__init__": 7}
 
 
 def _module_name(path: Path) -> str:

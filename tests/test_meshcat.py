@@ -142,6 +142,127 @@ def test_twenty_drones_read_from_the_default_camera_and_animations_stay_in_reach
     assert "drawn" not in page.split('id="masp-key"')[1].split("</div>")[0]   # drone-5: to scale
     # the Scene tree folds and the Animations panel opens once every command is applied; the panel scrolls
     assert "Promise.all(sent)" in page and "f.Scene.close()" in page and "f.Animations.open()" in page
-    assert ".dg.main{max-height:100vh;overflow-y:auto}" in page
+    assert ".dg.main>ul{max-height:calc(100vh - 20px);overflow-y:auto}" in page   # the list scrolls, the button stays
     big = dict(episode, scenario=get_scenario("drone-20"))
     assert "drones drawn 2× their size" in meshcat3d.episode_html(big)
+
+
+class _Chromium:
+    """Headless Chromium driven over its DevTools protocol: real mouse events at page coordinates."""
+
+    def __init__(self, width=900, height=700):
+        import json
+        import time
+        import urllib.request
+
+        websocket = pytest.importorskip("websocket")
+        self._json, self._time = json, time
+        self.profile = tempfile.TemporaryDirectory()
+        self.proc = subprocess.Popen(
+            [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={self.profile.name}", "--remote-debugging-port=0",
+             f"--window-size={width},{height}", "about:blank"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        port_file = Path(self.profile.name) / "DevToolsActivePort"
+        page = None
+        for _ in range(600):
+            try:
+                port = port_file.read_text().split()[0]
+                targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json", timeout=5))
+                page = next(t for t in targets if t["type"] == "page")
+                break
+            except (OSError, IndexError, StopIteration, ValueError):
+                time.sleep(0.1)
+        assert page is not None, "Chromium's DevTools endpoint did not come up"
+        self.ws = websocket.create_connection(page["webSocketDebuggerUrl"], timeout=120, suppress_origin=True)
+        self.n = 0
+
+    def send(self, method, **params):
+        self.n += 1
+        self.ws.send(self._json.dumps({"id": self.n, "method": method, "params": params}))
+        while True:
+            msg = self._json.loads(self.ws.recv())
+            if msg.get("id") == self.n:
+                assert "error" not in msg, msg["error"]
+                return msg.get("result", {})
+
+    def js(self, expr):
+        out = self.send("Runtime.evaluate", expression=expr, returnByValue=True, awaitPromise=True)
+        assert "exceptionDetails" not in out, out["exceptionDetails"]
+        return out["result"].get("value")
+
+    def wait_for(self, expr, seconds=60.0):
+        for _ in range(int(seconds * 10)):                  # false while the page (or its frame) still loads
+            value = self.js(f"(() => {{ try {{ return ({expr}); }} catch (e) {{ return false; }} }})()")
+            if value:
+                return value
+            self._time.sleep(0.1)
+        raise AssertionError(f"timed out waiting for {expr}")
+
+    def click(self, x, y):
+        for kind in ("mouseMoved", "mousePressed", "mouseReleased"):
+            self.send("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)
+
+    def close(self):
+        self.ws.close()
+        self.proc.terminate()
+        self.proc.wait(timeout=30)
+        self.profile.cleanup()
+
+
+# the replay as seen from the page that holds it: the page itself, or the iframe of a notebook's output
+_REPLAY = {"page": "window", "output": "document.querySelector('iframe').contentWindow"}
+
+
+def _replay_again_by_clicking(browser, where):
+    """Click meshcat's "Open Controls", open "Animations" if folded, click "play": where each click lands
+    is what a person's mouse would hit (``elementFromPoint``), not a script calling the button."""
+    win = _REPLAY[where]
+    browser.wait_for(f"(() => {{ const v = {win}.viewer; return v && v.animator && v.animator.duration > 0 "
+                     f"&& !v.animator.playing; }})()")                         # the replay ran once and stopped
+    target = ("(text, selector) => {{ const w = {win}, d = w.document, f = w.frameElement;"
+              " const e = [...d.querySelectorAll(selector)].find(e => e.textContent.trim() === text);"
+              " if (!e) return null;"
+              " const r = e.getBoundingClientRect(), o = f ? f.getBoundingClientRect() : {{x: 0, y: 0}};"
+              " const x = o.x + r.x + r.width / 2, y = o.y + r.y + r.height / 2;"
+              " let hit = document.elementFromPoint(x, y);"
+              " if (f && hit === f) hit = d.elementFromPoint(r.x + r.width / 2, r.y + r.height / 2);"
+              " return {{x, y, hit: hit === e || e.contains(hit), visible: r.width > 0 && r.height > 0}};"
+              " }}").format(win=win)
+    where_is = lambda text, selector: browser.js(f"({target})({text!r}, {selector!r})")  # noqa: E731
+    button = where_is("Open Controls", ".dg .close-button")
+    assert button and button["visible"] and button["hit"], f"{where}: 'Open Controls' cannot be clicked: {button}"
+    browser.click(button["x"], button["y"])
+    browser.wait_for(f"!{win}.document.querySelector('.dg.main > ul').classList.contains('closed')", 10)
+    folder = where_is("Animations", ".dg li.title")
+    assert folder and folder["visible"] and folder["hit"], f"{where}: 'Animations' cannot be clicked: {folder}"
+    if browser.js(f"{win}.viewer.gui.__folders.Animations.closed"):
+        browser.click(folder["x"], folder["y"])
+    play = where_is("play", ".dg .property-name")
+    assert play and play["visible"] and play["hit"], f"{where}: the Animations panel's 'play' cannot be clicked: {play}"
+    before = browser.js(f"{win}.viewer.animator.time")
+    browser.click(play["x"], play["y"])
+    assert browser.wait_for(f"{win}.viewer.animator.playing", 10), f"{where}: the replay did not start again"
+    browser.wait_for(f"{win}.viewer.animator.time !== {before!r}", 10)      # and it moves
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="headless Chromium is not installed (Debian: apt-get install chromium)")
+def test_replay_controls_are_clicked_open_in_headless_chromium(episode, tmp_path):
+    """The key says "replay: Open Controls → Animations → play": do it with the mouse, on a standalone
+    page (``play --out``) and on a notebook's saved output (chapters 08 and 11 embed the page in an
+    iframe). A page rule once clipped the closed controls to zero height, so a click at the button
+    landed on the canvas."""
+    page = tmp_path / "drones.html"
+    page.write_text(meshcat3d.episode_html(episode))
+    output = tmp_path / "output.html"
+    output.write_text("<!DOCTYPE html><html><body><p>a notebook cell's output:</p>"
+                      + meshcat3d.notebook_html(episode).data + "</body></html>")
+    browser = _Chromium()
+    try:
+        browser.send("Page.enable")
+        for where, path in (("page", page), ("output", output)):
+            browser.send("Page.navigate", url=path.as_uri())
+            _replay_again_by_clicking(browser, where)
+    finally:
+        browser.close()

@@ -172,6 +172,58 @@ def test_plot_progress_draws_training_evaluation_and_baseline(tmp_path):
     plt.close(fig)
 
 
+def test_progress_key_sits_under_the_panels_not_over_the_curves(tmp_path):
+    """The key of SR / Steps / CR is one figure legend below every panel: inside the SR panel it
+    covered the evaluation points and the baseline of a curve that sits near SR 1."""
+    import matplotlib.pyplot as plt
+
+    from masp_lite.viz.progress import plot_progress
+    n = 40
+    cols = {k: np.full(n, v) for k, v in (("train_sr", 0.98), ("train_steps", 20.0), ("train_cr", 0.1),
+                                          ("gm_reward", -1.0), ("cae_reward", -5.0))}
+    cols.update(env_steps=1000.0 * np.arange(1, n + 1), eval_sr=np.where(np.arange(n) % 5 == 4, 1.0, np.nan),
+                eval_steps=np.where(np.arange(n) % 5 == 4, 18.0, np.nan),
+                eval_cr=np.where(np.arange(n) % 5 == 4, 0.1, np.nan))
+    fig = plot_progress(cols, "a stage", baseline={"sr": 0.99, "steps": 19.0, "cr": 0.2})
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    assert all(ax.get_legend() is None for ax in fig.axes[:3])
+    (key,) = fig.legends
+    assert [t.get_text() for t in key.get_texts()] == ["training rollouts (sampled)", "evaluation (deterministic)",
+                                                       "h-greedy"]
+    box = key.get_window_extent(renderer)
+    for ax in fig.axes:
+        panel = ax.get_tightbbox(renderer)                  # the panel with its tick labels and axis label
+        assert box.y1 <= panel.y0 + 1, f"the key overlaps panel {ax.get_title()!r}"
+    plt.close(fig)
+
+
+def test_plot_history_puts_stages_end_to_end_and_leaves_a_gap_for_a_missing_curve(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from masp_lite.viz.progress import plot_history
+    rows = [{"eval_sr": "", "eval_steps": "", "eval_cr": ""}, {"eval_sr": "0.9", "eval_steps": "12", "eval_cr": "0.3"}]
+    first = _progress_csv(tmp_path / "a.csv", rows * 2)                     # 4 rows: env steps 100 .. 400
+    second = _progress_csv(tmp_path / "b.csv", rows)                        # 2 rows: env steps 100, 200
+    history = {"stages": [{"progress": first, "training": {}},
+                          {"progress": None, "training": {"env_steps": 1000}},   # a stage whose curve is not kept
+                          {"progress": second, "training": {}}]}
+    fig = plot_history(history, "three stages")
+    sr = fig.axes[0]
+    train = [line for line in sr.get_lines() if line.get_label() != "_child" and len(line.get_xdata()) > 2]
+    np.testing.assert_array_equal(train[0].get_xdata(), [100, 200, 300, 400])
+    later = [line.get_xdata() for line in sr.get_lines() if len(line.get_xdata()) and line.get_xdata()[0] > 400
+             and line.get_linestyle() != ":"]
+    np.testing.assert_array_equal(later[0], [1500, 1600])                 # 400 + 1000 of the missing curve + 100
+    starts = sorted({float(line.get_xdata()[0]) for line in sr.get_lines() if line.get_linestyle() == ":"})
+    assert starts == [0.0, 400.0, 1400.0]
+    assert [t.get_text() for t in sr.texts] == ["1", "2", "3"]
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["training rollouts (sampled)",
+                                                                   "evaluation (deterministic)"]
+    assert [ax.get_ylabel() for ax in fig.axes] == ["SR", "Steps", "CR"]
+    plt.close(fig)
+
+
 def test_training_history_of_the_shipped_weights(tmp_path):
     from masp_lite.reproduction.histories import training_history
     from masp_lite.viz.progress import last_evaluation, read_progress

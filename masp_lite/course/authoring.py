@@ -13,7 +13,8 @@ graded check   ``{grade: true, solution: false, locked: true, points, grade_id, 
 =============  ============================================================================
 
 :func:`problems` lists what a chapter is missing from the course skeleton (Neuromatch
-style): a ``# Chapter NN: …`` title; ``## Objectives`` (naming the prerequisites);
+style): a ``# Chapter NN: …`` title (``NN``: two digits, with a letter after them for a
+chapter slotted in between, ``04b``); ``## Objectives`` (naming the prerequisites);
 ``## Setup`` whose first code cell calls ``course.setup(`` and ``course.fast_mode()``;
 one or more ``## Section N: … (~M min)``; ``## Summary`` as the last level-2 heading.
 Each exercise sits right after the section that teaches it, inside that section: a
@@ -132,7 +133,7 @@ def problems(nb: nbformat.NotebookNode) -> list[str]:
     """What ``nb`` (an instructor notebook) lacks from the course skeleton; empty when complete."""
     out: list[str] = []
     cells = nb.cells
-    if not cells or cells[0].cell_type != "markdown" or not re.match(r"# Chapter \d\d: ", cells[0].source):
+    if not cells or cells[0].cell_type != "markdown" or not re.match(r"# Chapter \d\d[a-z]?: ", cells[0].source):
         out.append("first cell: expected a markdown title '# Chapter NN: ...'")
     try:
         MetadataValidator().validate_nb(nb)

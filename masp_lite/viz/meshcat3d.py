@@ -258,7 +258,7 @@ class RecordingWindow:
                     " if (f && f.Scene) f.Scene.close(); if (f && f.Animations) f.Animations.open(); });\n")
         return (f"<!DOCTYPE html>\n<html><head><meta charset=utf-8><title>{html_lib.escape(title)}</title>"
                 "<style>body{margin:0}#meshcat-pane{width:100vw;height:100vh;overflow:hidden}"
-                ".dg.main{max-height:100vh;overflow-y:auto}"
+                ".dg.main>ul{max-height:calc(100vh - 20px);overflow-y:auto}"
                 "#masp-key{position:absolute;top:8px;left:8px;z-index:10;background:rgba(255,255,255,.85);"
                 "font:12px/1.45 sans-serif;padding:6px 9px;border-radius:4px;pointer-events:none}"
                 "#masp-key i{display:inline-block;width:10px;height:10px;border-radius:50%;margin-right:5px}"
@@ -289,7 +289,7 @@ def _key(episode: dict, floating: bool = True) -> str:
             + swatch(SPIN_PLUS, "rotor spinning +1")
             + "hub and trail: one colour per drone<br>"
             + (f"drones drawn {drone_scale(sc):g}× their size<br>" if drone_scale(sc) > 1 else "")
-            + "drag to rotate, scroll to zoom; replay: Open Controls → Animations</div>")
+            + "drag to rotate, scroll to zoom; replay: Open Controls → Animations → play</div>")
 
 
 def key_html(episode: dict) -> str:

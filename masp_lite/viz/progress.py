@@ -9,6 +9,7 @@ cells in the other rows). These functions are what chapters 06 and 10 use to loo
 * :func:`read_progress` — the file as columns of floats (NaN where a cell is empty);
 * :func:`last_evaluation` — the last row that has an evaluation;
 * :func:`plot_progress` — SR, Steps, CR and both rewards against environment steps;
+* :func:`plot_history` — every stage of a kept training history, end to end (chapter 06);
 * :func:`plot_seed_bands` — the mean and band over seeds of several runs' curves (chapter 10's
   ablation figure).
 * :class:`ProgressLine` — a training run's progress in a notebook as one line that updates
@@ -33,7 +34,7 @@ import numpy as np
 
 from ..files import read_bounded
 
-__all__ = ["read_progress", "last_evaluation", "plot_progress", "plot_seed_bands", "ProgressLine"]
+__all__ = ["read_progress", "last_evaluation", "plot_progress", "plot_history", "plot_seed_bands", "ProgressLine"]
 
 
 class ProgressLine:
@@ -143,6 +144,7 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
     ``baseline`` (``{"sr", "steps", "cr"}`` means, e.g. h-greedy's) adds a dashed line,
     labelled ``baseline_label``, to each. A fourth panel shows the mean rewards of both
     levels, R_GM (eq. 1) and R_CAE (eq. 5). Call ``plt.show()`` (or let the notebook show it).
+    The three metric panels share one key, under them, so that it never hides a curve.
     The step axes carry at most five ticks in thousands / millions (``50k``, ``1.2M``), so
     their labels never run into each other on the narrow panels.
     """
@@ -159,7 +161,9 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
         if baseline is not None and baseline.get(key) is not None:
             ax.axhline(baseline[key], color="k", ls="--", lw=1, label=baseline_label)
         ax.set(title=label, xlabel="environment steps")
-    axes[0].legend(fontsize=8)
+    # one key for the three metric panels, under them: inside a panel it covered the evaluation
+    # points and the baseline (an SR curve near 1 fills the top of its panel, the bottom of Steps')
+    handles, labels = axes[0].get_legend_handles_labels()
     axes[3].plot(x, columns["gm_reward"], label="R_GM (eq. 1)")
     axes[3].plot(x, columns["cae_reward"], label="R_CAE (eq. 5)")
     axes[3].set(title="mean rewards", xlabel="environment steps")
@@ -168,7 +172,59 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
         ax.xaxis.set_major_locator(MaxNLocator(nbins=4, integer=True))
         ax.xaxis.set_major_formatter(EngFormatter(sep=""))
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.09, 1, 1))
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False,
+               bbox_to_anchor=(0.38, 0.0))
+    return fig
+
+
+def plot_history(history: dict, title: str = "", names=None):
+    """Every stage of a training history in one figure, end to end along environment steps; returns it.
+
+    ``history``: a kept history (:func:`masp_lite.reproduction.histories.training_history`:
+    ``{"stages": [{"progress": path or None, "training": {...}}, ...]}``, oldest stage first).
+    Three panels (SR ↑, Steps ↓, CR ↓) draw each stage's training rollouts and evaluations,
+    its environment steps counted on from where the stage before ended; a dotted line and the
+    stage's number above the panel (or its name from ``names``) mark where each stage starts. A stage whose
+    curve is not kept leaves a gap as long as its recorded environment steps. The periodic
+    evaluations of a stage run on that stage's own scenario and settings, so compare points
+    within a stage rather than across them.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import EngFormatter, MaxNLocator
+
+    stages = history.get("stages", [])
+    fig, axes = plt.subplots(1, 3, figsize=(15, 3.4))
+    offset = 0.0
+    for k, stage in enumerate(stages):
+        label = names[k] if names is not None and k < len(names) else str(k + 1)
+        info = stage.get("training") or {}
+        columns = read_progress(stage["progress"]) if stage.get("progress") else None
+        for ax in axes:
+            ax.axvline(offset, color="0.6", ls=":", lw=1)
+            ax.annotate(label, (offset, 1.0), xycoords=("data", "axes fraction"), xytext=(2, 2),
+                        textcoords="offset points", fontsize=7, color="0.3")
+        if columns is None or len(columns["env_steps"]) == 0:
+            offset += float(info.get("env_steps") or 0)
+            continue
+        x = offset + columns["env_steps"]
+        for ax, key in zip(axes, ("sr", "steps", "cr")):
+            ax.plot(x, columns[f"train_{key}"], color="C0", alpha=0.4, lw=1,
+                    label="training rollouts (sampled)" if k == 0 else None)
+            done = ~np.isnan(columns[f"eval_{key}"])
+            ax.plot(x[done], columns[f"eval_{key}"][done], "o-", color="C1", ms=3, lw=1,
+                    label="evaluation (deterministic)" if k == 0 else None)
+        offset = float(x[-1])
+    for ax, label in zip(axes, ("SR ↑", "Steps ↓", "CR ↓")):
+        ax.set_title(label, pad=12)
+        ax.set(xlabel="environment steps, stage after stage", ylabel=label.split()[0])
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=4, integer=True))
+        ax.xaxis.set_major_formatter(EngFormatter(sep=""))
+    fig.suptitle(title)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
+    handles, labels = axes[0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
     return fig
 
 
