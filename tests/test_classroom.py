@@ -66,7 +66,7 @@ def test_init_writes_an_nbgrader_course_folder(tmp_path):
         assert p.read_bytes() == (ROOT / "solutions" / p.name).read_bytes()
     assert (tmp_path / "course" / "nbgrader_config.py").is_file()
     assert (tmp_path / "course" / "gradebook.db").is_file()
-    with pytest.raises(ValueError, match="exists"):
+    with pytest.raises(ValueError, match="would be replaced"):
         classroom.init(tmp_path / "course", ["03"], solutions=ROOT / "solutions")
     assert classroom.init(tmp_path / "course", ["03"], solutions=ROOT / "solutions",
                           force=True)[0].parent.name == "03_graph_encoders"
