@@ -136,26 +136,25 @@ MASP = Recipe("masp", "masp", (
 ), "the shipped MASP on the particle presets (masp_lite/weights/mpe-*.pt); mpe-20to10 and mpe-50to20 run "
    "the mpe-20 weights zero-shot")
 
-MASP_DRONE = Recipe("masp-drone", "masp", (
-    # the executor first, flying to Hungarian goals (ours: a curriculum; the paper trains both levels)
-    Stage("drone-5-executor", "drone-5", 400, 32, {"goal_matcher": "hungarian", **_DRONE_EVAL, "eval_every": 25}),
-    Stage("drone-5", "drone-5", 60, 32, {"train_executor": False, **_DRONE_EVAL, "eval_every": 10},
-          "drone-5-executor", keep="drone-5"),
-    Stage("drone-20-executor", "drone-20", 120, 16, {"goal_matcher": "hungarian", **_DRONE_EVAL, "eval_every": 20},
-          "drone-5-executor"),
-    Stage("drone-20", "drone-20", 40, 16, {"train_executor": False, **_DRONE_EVAL, "eval_every": 10},
-          "drone-20-executor", keep="drone-20"),
-), "the shipped MASP on drones, motor commands (the paper's action)")
+def _drone_masp(name: str, method: str, executor_iterations: int, executor_eval: int, keep: str, about: str):
+    """MASP on drones: the executor first, flying to Hungarian goals (ours: a curriculum; the paper trains both
+    levels together), then the Goal Matcher alone; drone-20 fine-tunes drone-5's executor the same way."""
+    return Recipe(name, method, (
+        Stage("drone-5-executor", "drone-5", executor_iterations, 32,
+              {"goal_matcher": "hungarian", **_DRONE_EVAL, "eval_every": executor_eval}),
+        Stage("drone-5", "drone-5", 60, 32, {"train_executor": False, **_DRONE_EVAL, "eval_every": 10},
+              "drone-5-executor", keep=f"{keep}drone-5"),
+        Stage("drone-20-executor", "drone-20", 120, 16,
+              {"goal_matcher": "hungarian", **_DRONE_EVAL, "eval_every": 20}, "drone-5-executor"),
+        Stage("drone-20", "drone-20", 40, 16, {"train_executor": False, **_DRONE_EVAL, "eval_every": 10},
+              "drone-20-executor", keep=f"{keep}drone-20"),
+    ), about)
 
-MASP_VELOCITY = Recipe("masp-velocity", "masp-velocity", (
-    Stage("drone-5-executor", "drone-5", 300, 32, {"goal_matcher": "hungarian", **_DRONE_EVAL, "eval_every": 10}),
-    Stage("drone-5", "drone-5", 60, 32, {"train_executor": False, **_DRONE_EVAL, "eval_every": 10},
-          "drone-5-executor", keep="masp-velocity/drone-5"),
-    Stage("drone-20-executor", "drone-20", 120, 16, {"goal_matcher": "hungarian", **_DRONE_EVAL, "eval_every": 20},
-          "drone-5-executor"),
-    Stage("drone-20", "drone-20", 40, 16, {"train_executor": False, **_DRONE_EVAL, "eval_every": 10},
-          "drone-20-executor", keep="masp-velocity/drone-20"),
-), "MASP whose executor asks the geometric controller for a velocity (ours, not the paper's)")
+
+MASP_DRONE = _drone_masp("masp-drone", "masp", 400, 25, "",
+                         "the shipped MASP on drones, motor commands (the paper's action)")
+MASP_VELOCITY = _drone_masp("masp-velocity", "masp-velocity", 300, 10, "masp-velocity/",
+                            "MASP whose executor asks the geometric controller for a velocity (ours, not the paper's)")
 
 RECIPES: dict[str, Recipe] = {r.name: r for r in (
     MASP, MASP_DRONE, MASP_VELOCITY,

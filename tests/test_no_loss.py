@@ -365,21 +365,30 @@ def _tmp(call) -> bool:
     return isinstance(target, ast.Name) and target.id == "tmp"
 
 
-def _writes(path):
-    """(name, line) of every call in ``path`` that writes a file: ``open``/``fdopen`` in a writing mode,
-    ``write_text``, ``write_bytes``, ``torch.save`` to anything but an in-memory buffer, ``json.dump``,
-    ``nbformat.write``, and a movie's ``save`` (unless to an :func:`~masp_lite.files.atomic_target` path)."""
+def _calls(path):
+    """(call node, name, owner, open modes) of every call in the module at ``path``: ``name`` the called
+    function or method, ``owner`` the name it is called on (``json`` in ``json.load``), ``modes`` the constant
+    mode strings it is given (``Path.open("w")`` takes its mode first, ``open(p, "w")`` second)."""
     import ast
-    found = []
     for node in ast.walk(ast.parse(path.read_text())):
         if not isinstance(node, ast.Call):
             continue
         f = node.func
         name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
         owner = f.value.id if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) else ""
-        mode_at = 0 if isinstance(f, ast.Attribute) and name == "open" and owner != "os" else 1  # Path.open("w")
+        mode_at = 0 if isinstance(f, ast.Attribute) and name == "open" and owner != "os" else 1
         modes = [a.value for a in node.args[mode_at:mode_at + 1] + [k.value for k in node.keywords if k.arg == "mode"]
                  if isinstance(a, ast.Constant) and isinstance(a.value, str)]
+        yield node, name, owner, modes
+
+
+def _writes(path):
+    """(name, line) of every call in ``path`` that writes a file: ``open``/``fdopen`` in a writing mode,
+    ``write_text``, ``write_bytes``, ``torch.save`` to anything but an in-memory buffer, ``json.dump``,
+    ``nbformat.write``, and a movie's ``save`` (unless to an :func:`~masp_lite.files.atomic_target` path)."""
+    import ast
+    found = []
+    for node, name, owner, modes in _calls(path):
         writing = any(set(m) & set("wax+") for m in modes)
         first = node.args[1] if len(node.args) > 1 else None
         to_memory = isinstance(first, ast.Name) and first.id in ("buf", "buffer")
@@ -418,15 +427,7 @@ def _reads(path):
     ``read_bytes``, ``json.load``, ``nbformat.read`` and ``torch.load`` of anything but an in-memory buffer."""
     import ast
     found = []
-    for node in ast.walk(ast.parse(path.read_text())):
-        if not isinstance(node, ast.Call):
-            continue
-        f = node.func
-        name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
-        owner = f.value.id if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) else ""
-        mode_at = 0 if isinstance(f, ast.Attribute) and name == "open" and owner != "os" else 1
-        modes = [a.value for a in node.args[mode_at:mode_at + 1] + [k.value for k in node.keywords if k.arg == "mode"]
-                 if isinstance(a, ast.Constant) and isinstance(a.value, str)]
+    for node, name, owner, modes in _calls(path):
         first = node.args[0] if node.args else None
         in_memory = isinstance(first, ast.Call) and getattr(first.func, "attr", "") == "BytesIO"
         if (name == "open" and owner != "os" and not any(set(m) & set("wax") for m in modes)) or \

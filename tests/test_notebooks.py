@@ -28,6 +28,7 @@ from pathlib import Path
 import nbformat
 import pytest
 from nbclient import NotebookClient
+from test_exercises import _imports
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLUTIONS = sorted((ROOT / "solutions").glob("*.ipynb"))
@@ -57,19 +58,7 @@ def test_instructor_notebook_runs_under_nbval(path, tmp_path):
 
 def references(instructor: nbformat.NotebookNode) -> dict[str, str]:
     """``{expression: source}`` of every exercise's reference and hidden objects, from its graded check cells."""
-    namespace: dict = {}
-    for cell in instructor.cells:  # the chapter's imports, to resolve the references' names
-        if cell.cell_type == "code":
-            try:
-                tree = ast.parse(cell.source)
-            except SyntaxError:
-                continue
-            for node in tree.body:
-                if isinstance(node, (ast.Import, ast.ImportFrom)):
-                    try:
-                        exec(compile(ast.Module([node], []), "<imports>", "exec"), namespace)
-                    except Exception:  # noqa: BLE001 - an optional import
-                        pass
+    namespace = _imports(instructor)  # the chapter's imports, to resolve the references' names
     found = {}
     for cell in instructor.cells:
         if not cell.metadata.get("nbgrader", {}).get("grade"):
