@@ -121,15 +121,21 @@ _SQUARED_FINE_TUNE = {
 MASP = Recipe("masp", "masp", (
     # mpe-20 from random networks: eq. 1 as written (the faithful recipe)
     Stage("mpe-20-scratch", "mpe-20", 150, 32, {**FROM_SCRATCH, **EVAL_SETTINGS}),
-    # both levels, R_GM on squared distances, a doubled contact penalty: the shipped mpe-20
-    Stage("mpe-20", "mpe-20", 200, 32, {**_SQUARED_FINE_TUNE, "collision_coef": 4.0, **EVAL_SETTINGS,
-                                        "eval_every": 50}, "mpe-20-scratch", keep="mpe-20"),
-    # mpe-5 from the mpe-20 weights: more worlds for the short episodes, 10 obstacles in training (the
-    # preset has 5: more encounters to learn clearance from)
-    Stage("mpe-5", "mpe-5", 800, 128, {**_SQUARED_FINE_TUNE, "collision_coef": 2.0, "num_obstacles": 10,
-                                      "eval_every": 100, "eval_episodes": 128, "checkpoint_every": 10},
-          "mpe-20", keep="mpe-5"),
-    # mpe-50: the Goal Matcher only, at N = 50 (the executor of mpe-20 drives unchanged)
+    # both levels, R_GM on squared distances, the contact penalty doubled again
+    Stage("mpe-20-both", "mpe-20", 800, 32, {**_SQUARED_FINE_TUNE, "collision_coef": 4.0, "eval_every": 100,
+                                             "eval_episodes": 64, "checkpoint_every": 10}, "mpe-20-scratch"),
+    # the Goal Matcher alone with MAPPO's own step size (the executor drives unchanged): the shipped mpe-20
+    Stage("mpe-20", "mpe-20", 300, 32, {"train_executor": False, "gm_ppo_epochs": 4, "gm_reference": "squared",
+                                        **EVAL_SETTINGS, "eval_every": 50}, "mpe-20-both", keep="mpe-20"),
+    # mpe-5 from random networks (its own chain: the mpe-20 weights bought nothing at N = 5), 10 obstacles in
+    # training (the preset has 5: more encounters to learn clearance from)
+    Stage("mpe-5-scratch", "mpe-5", 1500, 64, {**FROM_SCRATCH, "num_obstacles": 10, "eval_every": 100,
+                                              "eval_episodes": 128, "checkpoint_every": 10}),
+    # both levels, quieter, more worlds for the short episodes: the shipped mpe-5
+    Stage("mpe-5", "mpe-5", 1600, 128, {**_SQUARED_FINE_TUNE, "collision_coef": 2.0, "num_obstacles": 10,
+                                        "eval_every": 200, "eval_episodes": 128, "checkpoint_every": 10},
+          "mpe-5-scratch", keep="mpe-5"),
+    # mpe-50: the Goal Matcher only, at N = 50, from the shipped mpe-20 (its executor drives unchanged)
     Stage("mpe-50", "mpe-50", 400, 16, {"train_executor": False, "entropy_coef": 0.005,
                                         "gm_reference": "squared", "eval_every": 50, "eval_episodes": 50,
                                         "checkpoint_every": 5}, "mpe-20", keep="mpe-50"),

@@ -31,10 +31,10 @@ def test_every_kept_weights_name_belongs_to_one_stage():
 
 def test_a_recipe_may_only_change_what_it_does_not_train_with():
     recipe = get_recipe("masp")
-    _, cfg, _ = stage_config(recipe, recipe.stage("mpe-20"), ["eval_every=7"])
+    _, cfg, _ = stage_config(recipe, recipe.stage("mpe-20-both"), ["eval_every=7"])
     assert cfg.run.eval_every == 7 and cfg.ppo.lr == 2e-4 and cfg.reward.gm_reference == "squared"
     with pytest.raises(ValueError, match="would change the recipe"):
-        stage_config(recipe, recipe.stage("mpe-20"), ["lr=0.1"])
+        stage_config(recipe, recipe.stage("mpe-20-both"), ["lr=0.1"])
 
 
 def test_unknown_recipe_or_stage_is_one_clear_error_listing_the_known_ones(tmp_path, capsys):
