@@ -171,8 +171,8 @@ class MASPNets(nn.Module):
         self.gm_critic = GoalMatcherCritic(c.width, self.dims)
         self.cae = self.build_executor(c, *variants.executor_parts(c, self.pair_size, self.landmark_size))
         self.cae_critic = ExecutorCritic(c.width)
-        self.goal_inputs = variants.goal_view(c) or assigned_goal_features
-        self.critic_inputs = variants.critic_inputs(c) or global_features
+        self.goal_inputs = variants.goal_view(c) or assigned_goal_features  # (obs, goals, max_speed): the goal input
+        self.critic_inputs = variants.critic_inputs(c) or global_features  # (obs, horizon): the critic's centralized
 
     def _config(self, config: NetConfig | None, arch: dict) -> NetConfig:
         name = type(self).__name__
