@@ -43,7 +43,6 @@ from masp_lite.envs import make
 from masp_lite.evaluation import MAX_ENVS, collision_rate, reached_target, rollout, steps, success_rate
 from masp_lite.nets.drones import DRONE_SPEED, PAIR_FEATURES, DroneExecutor, DroneNets
 from masp_lite.nets.fusion import GroupInformationFusion
-from masp_lite.nets.masp import ExecutorCritic, GoalMatcher, GoalMatcherCritic
 from masp_lite.policies.drone_masp import DroneMASPPolicy
 from masp_lite.training import method_config, train
 from masp_lite.weights import read_weights
@@ -70,19 +69,14 @@ class ContactNets(DroneNets):
     ones (B, N, N, 10). Built in :class:`DroneNets`' order, the fusion where the executor builds its own, so
     a seed draws the weights of the runs in the research log."""
 
-    def __init__(self, config: NetConfig | None = None, **arch):
-        nn.Module.__init__(self)
-        self.config = c = config if config is not None else NetConfig(**arch)
-        self.gm = GoalMatcher(c.width, dims=3)
-        self.gm_critic = GoalMatcherCritic(c.width, dims=3)
-        self.cae = DroneExecutor(c.width, c.gcn_layers, c.action, c.log_std_init,
-                                 fusion=GroupInformationFusion(PAIR_FEATURES + 2, c.width, c.gcn_layers))
-        self.cae_critic = ExecutorCritic(c.width)
+    def build_executor(self, c: NetConfig, fusion: nn.Module | None, goal_embed: nn.Module | None) -> nn.Module:
+        return DroneExecutor(c.width, c.gcn_layers, c.action, c.log_std_init,
+                             fusion=GroupInformationFusion(PAIR_FEATURES + 2, c.width, c.gcn_layers))
 
-    def cae_inputs(self, obs: dict, goals: torch.Tensor, perm: torch.Tensor) -> tuple:
-        pair, *rest = super().cae_inputs(obs, goals, perm)
+    def cae_inputs(self, obs: dict, goals: torch.Tensor, perm: torch.Tensor):
+        inputs = super().cae_inputs(obs, goals, perm)
         extra = contact_features(obs["agent_pos"], obs["agent_vel"], DRONE_SPEED)
-        return (torch.cat([pair, extra], dim=-1), *rest)
+        return inputs._replace(pair=torch.cat([inputs.pair, extra], dim=-1))
 
 
 class ContactTrainer(DroneMASPTrainer):

@@ -4,8 +4,8 @@ MASP (Multi-Agent Scalable Graph-based Planner) assigns goals with a graph-based
 Matcher and reaches them with a Coordinated Action Executor built on Group Information
 Fusion, both trained with MAPPO. See ``notebooks/`` for the course.
 
-Reading path — MASP itself, in the order of the paper's method section (12 files, about
-2,083 lines; each reads in one sitting):
+Reading path — MASP itself, in the order of the paper's method section (13 files, about
+2,137 lines; each reads in one sitting):
 
 =====  ==========================  =====  ================================================
 step   file                        lines  what it holds
@@ -15,7 +15,8 @@ step   file                        lines  what it holds
 3      ``algos/assignment.py``       158  the Hungarian assignment (R_GM's reference)
 4      ``nets/encoders.py``          177  Self-Encoder and Cross-Encoder (eqs. 2-4)
 5      ``nets/fusion.py``            143  Group Information Fusion: groups of 3, a GCN each
-6      ``nets/masp.py``              302  Goal Matcher, Coordinated Action Executor, critics
+6a     ``nets/features.py``          120  what the networks see of a world (both worlds)
+6b     ``nets/masp.py``              236  Goal Matcher, executor, critics (both worlds)
 7      ``nets/goal_draw.py``          85  matching scores -> distinct goals, in training
 8      ``nets/decoding.py``           84  matching scores -> distinct goals, when acting
 9      ``algos/rewards.py``           97  R_GM (eq. 1) and R_CAE (eq. 5)

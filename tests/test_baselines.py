@@ -8,7 +8,8 @@ from masp_lite.algos.team import hungarian_goals
 from masp_lite.config import NetConfig
 from masp_lite.envs import make
 from masp_lite.nets.baselines import AttentionSubgraph, NearestMLP, nearest_others
-from masp_lite.nets.masp import MASPNets, pair_features
+from masp_lite.nets.features import pair_features
+from masp_lite.nets.masp import MASPNets
 from masp_lite.policies import make_policy
 from masp_lite.training import method_config
 from masp_lite.weights import save_weights

@@ -7,7 +7,7 @@ from masp_lite.algos.goal_sources import coverage_reward
 from masp_lite.envs import make
 from masp_lite.nets.baselines import distance_feature, far, landmark_features, nearest_others
 from masp_lite.nets.drones import DRONE_SPEED, DroneNets
-from masp_lite.nets.masp import goal_features, pair_features
+from masp_lite.nets.features import goal_features, pair_features
 from masp_lite.policies import learned_methods, make_policy
 from masp_lite.training import method_config, train
 from masp_lite.weights import load_weights

@@ -6,8 +6,9 @@ import torch
 
 from masp_lite.envs import make
 from masp_lite.nets.encoders import CrossEncoder, SelfEncoder, node_update, s_inter
+from masp_lite.nets.features import obstacle_features, pair_features
 from masp_lite.nets.fusion import GroupInformationFusion, gcn_layer, group_division, random_permutation
-from masp_lite.nets.masp import MASPNets, obstacle_features, pair_features
+from masp_lite.nets.masp import MASPNets
 from masp_lite.policies.masp import MASPPolicy
 
 

@@ -15,8 +15,8 @@ Per environment step ``t`` of a rollout (all worlds and agents at once, under
    (eq. 1) is computed at once against the Hungarian assignment;
 2. the executor samples an action per agent from its goal and a fresh random group order,
    and the world steps; its inputs (pair features, the groups, goal and obstacle features,
-   :meth:`~masp_lite.nets.masp.MASPNets.cae_inputs`) are stored with the step, so the
-   update sees the same groups and does not recompute them every epoch;
+   :class:`~masp_lite.nets.masp.ExecutorInputs`) are stored with the step under their names, so
+   the update sees the same groups and does not recompute them every epoch;
 3. ``R_CAE`` (eq. 5) is computed after the step.
 
 A rollout is one full episode (horizon steps), so both levels bootstrap from 0 at the
@@ -27,9 +27,10 @@ level (only the Goal Matcher when ``train_executor`` is off: a fine-tuning stage
 leaves the executor, its critic and its value normalisation untouched).
 
 The ablations and the RL baselines are settings of the same trainer
-(:class:`~masp_lite.config.NetConfig`), their parts beside this path: their goals come from
-:mod:`masp_lite.algos.goal_sources`, their networks from :mod:`masp_lite.nets.variants`, the
-goal-free ones' reward is :func:`~masp_lite.algos.goal_sources.coverage_reward`; an ``mlp``
+(:class:`~masp_lite.config.NetConfig`), their parts beside this path: their goals come from a
+source of :mod:`masp_lite.algos.goal_sources` (:attr:`MASPTrainer.goal_source`, chosen once), their
+networks from :mod:`masp_lite.nets.variants`, the goal-free ones' reward is
+:func:`~masp_lite.algos.goal_sources.coverage_reward`; an ``mlp``
 variant is built for the scenario's team size. The drone trainer
 (:mod:`masp_lite.algos.drone_trainer`) overrides the action step and R_CAE. A research question
 changes one part the same way, in a subclass passed to :func:`masp_lite.training.train`
@@ -95,10 +96,9 @@ class MASPTrainer:
                                  f"{sc.name!r} has {self.world.num_agents}")
             cfg = self.cfg = dataclasses.replace(cfg, net=dataclasses.replace(cfg.net,
                                                                               team_size=self.world.num_agents))
-        self.gm_trained = cfg.net.goal_matcher not in ("random", "hungarian", "none")  # a Goal Matcher to train
-        if not self.gm_trained:  # an ablation's or a baseline's goals, beside MASP's
-            from .goal_sources import coverage_reward, scripted_goals
-            self.goal_source, self.coverage_reward = scripted_goals, coverage_reward
+        from .goal_sources import goal_source  # an ablation's or a baseline's goals, beside the paper's path
+        self.goal_source = goal_source(cfg.net.goal_matcher)  # None: the Goal Matcher's
+        self.gm_trained = self.goal_source is None  # a Goal Matcher to train
         torch.manual_seed(self.seed)  # network initialisation
         self.nets = self.nets_class(cfg.net)
         n = self.nets
@@ -118,7 +118,7 @@ class MASPTrainer:
         w, n, g, T = self.world, self.nets, self.generator, self.horizon
         obs = w.reset()
         gm, cae = RolloutStorage(), RolloutStorage()
-        goals, self._drawn_for = None, None
+        goals = None
         cov, col = [obs["covered"].all(-1)], []
         B, N = w.num_envs, w.num_agents
         for t in range(T):
@@ -131,7 +131,7 @@ class MASPTrainer:
             alive = obs["alive"].clone()
             obs, info = w.step(command)
             r = self.executor_reward(obs, goals, info, alive, t)         # 3. R_CAE after the step
-            cae.add(**snap, pair=inputs[0], groups=inputs[1], goal_f=inputs[3], extra_f=inputs[4],
+            cae.add(**snap, **{k: x for k, x in inputs._asdict().items() if k not in snap},  # alive: the snap's
                     actions=actions, logp=logp, values=v, rewards=r, mask=alive)
             cov.append(info["covered"].all(-1))
             col.append(info["collisions"])
@@ -147,13 +147,11 @@ class MASPTrainer:
 
     def goal_step(self, t: int, obs: dict, goals, snap: dict, storage: RolloutStorage):
         """The goals (B, N) for step ``t``: every ``global_step`` steps the Goal Matcher samples distinct
-        goals, and the decision is stored with its R_GM. Another goal source of ``NetConfig.goal_matcher``
-        (an ablation's or a baseline's: random, Hungarian, none) is :mod:`masp_lite.algos.goal_sources`'."""
-        if not self.gm_trained:
-            goals, self._drawn_for = self.goal_source(self.cfg.net.goal_matcher, t, obs, goals, self._drawn_for,
-                                                      self.cfg.net.global_step, self.generator,
-                                                      self.world.scenario.varying)
-            return goals
+        goals, and the decision is stored with its R_GM. Without a Goal Matcher to train, the goals are
+        :attr:`goal_source`'s (an ablation's or a baseline's, :mod:`masp_lite.algos.goal_sources`)."""
+        if self.goal_source is not None:
+            return self.goal_source.train(t, obs, goals, self.generator, self.cfg.net.global_step,
+                                          self.world.scenario.varying)
         if t % self.cfg.net.global_step:
             return goals
         goal_mask = ~obs["reached"] if self.world.scenario.varying else None  # reached ones count for SR already
@@ -175,9 +173,10 @@ class MASPTrainer:
     def executor_reward(self, obs: dict, goals, info: dict, alive, t: int) -> torch.Tensor:
         """R_CAE (eq. 5) of step ``t``, from the observation after it; the goal-free baselines' coverage reward."""
         rc, world_size = self.cfg.reward, self.world.scenario.world_size
-        if goals is None:
-            return self.coverage_reward(obs["agent_pos"], obs["landmark_pos"], info["agent_collisions"], alive,
-                                        self.reach, world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)
+        if goals is None:  # no goals: the goal-free baselines' reward, beside the paper's path
+            from .goal_sources import coverage_reward
+            return coverage_reward(obs["agent_pos"], obs["landmark_pos"], info["agent_collisions"], alive,
+                                   self.reach, world_size, rc.bonus_coef, rc.distance_coef, rc.collision_coef)
         goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(obs["agent_pos"]))
         return executor_reward(obs["agent_pos"], goal_pos, info["agent_collisions"], alive, self.reach, world_size,
                                rc.bonus_coef, rc.distance_coef, rc.collision_coef)
@@ -203,7 +202,7 @@ class MASPTrainer:
     def cae_evaluate(self, mb):
         """A minibatch's executor output and values from the stored inputs: what its PPO update recomputes."""
         obs = {k: mb[k] for k in self.obs_keys}
-        inputs = (mb["pair"], mb["groups"], mb["alive"], mb["goal_f"], mb["extra_f"])
+        inputs = self.nets.inputs_type(**{k: mb[k] for k in self.nets.inputs_type._fields})
         return self.nets.cae_forward(inputs, obs, self.horizon)
 
     def iteration(self) -> dict[str, float]:

@@ -3,8 +3,8 @@
 * :mod:`.encoders` — ``SelfEncoder`` (eqs. 2-3) and ``CrossEncoder`` (eq. 4);
 * :mod:`.fusion` — ``group_division`` and ``GroupInformationFusion`` (GCN over groups);
 * :mod:`.decoding` — how the Goal Matcher's scores become goals;
-* :mod:`.masp` — ``GoalMatcher``, ``CoordinatedActionExecutor``, the centralized
-  critics, their input features and ``MASPNets`` (all four).
+* :mod:`.features` — what they see; :mod:`.masp` — ``GoalMatcher``, ``CoordinatedActionExecutor``,
+  the centralized critics and ``MASPNets`` (all four, both worlds; :mod:`.drones` adds the drones' part).
 
 Submodules are imported on demand, so importing this package costs nothing.
 """

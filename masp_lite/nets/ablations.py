@@ -6,11 +6,11 @@ replaced by an MLP over the same inputs.
   in index order) and every goal -> logits over the goals: the paper's "concatenated
   position information of all agents and goals for agent k, with the position information
   of agent k listed first". It gets positions only, not the graph version's nearest-distance
-  node inputs or its two distance channels per pair (:func:`~masp_lite.nets.masp.gm_inputs`):
+  node inputs or its two distance channels per pair (:func:`~masp_lite.nets.features.gm_inputs`):
   given those, an MLP matched the graphs (docs/research-log.md, 2026-12-02), since they
   already say which agent is closest to each goal.
 * :class:`FusionMLP` — "CAE w.o. Graph": the executor's Group Information Fusion replaced
-  by an MLP over agent ``k``'s view of every agent (:func:`~masp_lite.nets.masp.pair_features`:
+  by an MLP over agent ``k``'s view of every agent (:func:`~masp_lite.nets.features.pair_features`:
   relative position, distance, relative velocity; ``k`` first, then the others), -> the
   same ``width`` features. The goal and obstacle embeddings and the head are MASP's.
 

@@ -27,9 +27,9 @@ paper applies it), and the other agents through
   ``mappo``), or
 * :class:`RadiusMean` (``executor="radius"``, ``darl1n``): the mean embedding of the agents
   within 1 m (the pair features' sensing radius), DARL1N's one-hop neighbourhood; its critic
-  sees that view and the time left, no team-wide input (:meth:`masp_lite.nets.masp.MASPNets.cae_forward`).
+  sees that view and the time left, no team-wide input (:func:`masp_lite.nets.variants.time_left_only`).
 
-Pair features are :func:`masp_lite.nets.masp.pair_features` (distance clipped at 1 m), so
+Pair features are :func:`masp_lite.nets.features.pair_features` (distance clipped at 1 m), so
 "nearest" ranks the agents within 1 m by distance; beyond it they all sit at the edge and
 the order among them is arbitrary but fixed (by index). Every module serves any team size.
 
@@ -56,7 +56,7 @@ def landmark_features(pos: torch.Tensor, vel: torch.Tensor, landmark_pos: torch.
     """(B, N, M, 2D + 3): every landmark seen from every agent, in D = 2 or 3 dimensions.
 
     ``[unit direction (D), min(dist, 1 m), log(1 + dist), covered, own velocity / max_speed (D)]``,
-    the goal features of MASP's executor (:func:`masp_lite.nets.masp.goal_features`) for each landmark, plus
+    the goal features of MASP's executor (:func:`masp_lite.nets.features.goal_features`) for each landmark, plus
     whether it is covered now.
     """
     rel = landmark_pos.unsqueeze(1) - pos.unsqueeze(2)                    # (B, N, M, D)

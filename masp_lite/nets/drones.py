@@ -1,18 +1,19 @@
 """MASP's networks for the quadrotor world: the same two levels in 3-D, with a Gaussian executor.
 
-The design is the particle world's (:mod:`masp_lite.nets.masp`), node for node:
+:class:`DroneNets` is :class:`~masp_lite.nets.masp.MASPNets` (the same constructor, variants,
+Goal Matcher calls, executor inputs and critics, node for node) with only what differs:
 
-* **Goal Matcher**: :class:`~masp_lite.nets.masp.GoalMatcher` on 3-D nodes
-  (:func:`~masp_lite.nets.masp.gm_inputs`: positions over the map's half-width, velocities
-  over ``DRONE_SPEED``), trained on R_GM (eq. 1) against the 3-D Hungarian assignment.
-* **Executor** (:class:`DroneExecutor`): the Group Information Fusion over 3-D pair features
-  (:func:`~masp_lite.nets.masp.pair_features`, clipped at ``DRONE_SENSE`` = 2 m: two drones
-  touch below 0.54 m and fly at up to 4 m/s), the assigned goal's embedding
-  (:func:`~masp_lite.nets.masp.goal_features` in 3-D) and, in place of obstacles (the
-  drone world has none), the drone's own flight state (:func:`drone_state_features`: its
-  attitude, body rates, height and rotor throttles — what a motor-level controller needs).
-* **Actions** (``NetConfig.action``), a Gaussian with a learned, state-independent log-std
-  per dimension (initialised at ``NetConfig.log_std_init``), as MAPPO's continuous policies:
+* **3-D**: the Goal Matcher's nodes (:func:`~masp_lite.nets.features.gm_inputs`: positions over
+  the map's half-width, velocities over ``DRONE_SPEED``), trained on R_GM (eq. 1) against the 3-D
+  Hungarian assignment; the pair features (:func:`~masp_lite.nets.features.pair_features`) clipped
+  at ``DRONE_SENSE`` = 2 m (two drones touch below 0.54 m and fly at up to 4 m/s) and the assigned
+  goal's features in 3-D;
+* **the executor's own input** (:class:`DroneExecutorInputs`): in place of obstacles (the drone
+  world has none), the drone's flight state (:func:`drone_state_features`: its attitude, body
+  rates, height and rotor throttles — what a motor-level controller needs);
+* **the executor** (:class:`DroneExecutor`): its actions (``NetConfig.action``) are a Gaussian
+  with a learned, state-independent log-std per dimension (initialised at
+  ``NetConfig.log_std_init``), as MAPPO's continuous policies:
 
   - ``throttle`` (the paper's): 4 motor commands; the mean is ``HOVER_COMMAND`` plus the
     head's output, whose last layer starts near 0, so an untrained executor hovers;
@@ -24,16 +25,14 @@ The design is the particle world's (:mod:`masp_lite.nets.masp`), node for node:
   is trained on the log-probability of the unclipped sample (the clip belongs to the world),
   which keeps the log-probability exact and the entropy in closed form
   (:func:`gaussian_log_prob`). The deterministic action is the clipped mean.
-* **Critics**: :class:`~masp_lite.nets.masp.GoalMatcherCritic` on the 3-D nodes and
-  :class:`~masp_lite.nets.masp.ExecutorCritic` on the executor's features, as in MPE.
 
 Every weight acts per node, pair or group, so the networks fly any team size (drone-5
 weights fine-tune on drone-20, drone-20 weights fly drone-20to10).
 """
 from __future__ import annotations
 
-import dataclasses
 import math
+from typing import NamedTuple
 
 import torch
 from torch import nn
@@ -41,21 +40,12 @@ from torch import nn
 from ..config import NetConfig
 from ..envs.drone_model import DRONE_SPEED, HOVER_COMMAND, quat_to_matrix
 from ..envs.drones import FLIGHT_HEIGHT
-from .baselines import landmark_features
 from .encoders import mlp
-from .fusion import GroupInformationFusion, group_division
-from .masp import (
-    ExecutorCritic,
-    GoalMatcher,
-    GoalMatcherCalls,
-    GoalMatcherCritic,
-    critic_extra,
-    goal_features,
-    pair_features,
-)
+from .fusion import GroupInformationFusion
+from .masp import MASPNets
 
-__all__ = ["DroneNets", "DroneExecutor", "drone_state_features", "gaussian_log_prob", "gaussian_entropy",
-           "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
+__all__ = ["DroneNets", "DroneExecutor", "DroneExecutorInputs", "drone_state_features", "gaussian_log_prob",
+           "gaussian_entropy", "DRONE_SPEED", "DRONE_SENSE", "ACTION_SIZE"]
 
 DRONE_SENSE = 2.0
 """Metres at which neighbour vectors are clipped."""
@@ -64,6 +54,17 @@ ANGVEL_SCALE = 10.0
 PAIR_FEATURES, GOAL_FEATURES, STATE_FEATURES, LANDMARK_FEATURES = 8, 8, 17, 9
 #: Action dimensions per drone for each ``NetConfig.action``.
 ACTION_SIZE = {"throttle": 4, "velocity": 3}
+
+
+class DroneExecutorInputs(NamedTuple):
+    """A drone executor's inputs for one step (a tuple too: ``executor(*inputs)``): those of the particle
+    world's :class:`~masp_lite.nets.features.ExecutorInputs` in 3-D, with the flight state for obstacles."""
+
+    pair: torch.Tensor     # (B, N, N, 8) pair_features, clipped at DRONE_SENSE
+    groups: torch.Tensor   # (B, N, G, n) group_division (long)
+    alive: torch.Tensor    # (B, N)
+    goal: torch.Tensor     # (B, N, 8) goal_features; (B, N, M, 9) landmark_features without goals
+    flight: torch.Tensor   # (B, N, 17) drone_state_features
 
 
 def drone_state_features(obs: dict) -> torch.Tensor:
@@ -90,7 +91,8 @@ def gaussian_entropy(log_std: torch.Tensor, shape) -> torch.Tensor:
 
 
 class DroneExecutor(nn.Module):
-    """Low-level actor: ``forward(pair, groups, alive, goal_f, state_f) -> (mean, log_std)``, (B, N, A) and (A,)."""
+    """Low-level actor: ``forward(*inputs) -> (mean, log_std)``, (B, N, A) and (A,), ``inputs`` a
+    :class:`DroneExecutorInputs`."""
 
     def __init__(self, width: int = 32, gcn_layers: int = 1, action: str = "throttle", log_std_init: float = -1.6,
                  fusion: nn.Module | None = None, goal_embed: nn.Module | None = None):
@@ -109,64 +111,31 @@ class DroneExecutor(nn.Module):
         self.register_buffer("offset", torch.full((A,), HOVER_COMMAND if action == "throttle" else 0.0))
         self.log_std = nn.Parameter(torch.full((A,), float(log_std_init)))
 
-    def features(self, pair, groups, alive, goal_f, state_f):
-        return [self.fusion(pair, groups, alive), self.goal_embed(goal_f), self.state_embed(state_f)]
+    def features(self, pair, groups, alive, goal, flight) -> list:
+        """The three features the head (and the critic) read: fusion, goal, flight state, each (B, N, width)."""
+        return [self.fusion(pair, groups, alive), self.goal_embed(goal), self.state_embed(flight)]
 
-    def distribution(self, features):
+    def output(self, features: list):
+        """``(mean, log_std)`` of the Gaussian from :meth:`features`."""
         return self.head(torch.cat(features, dim=-1)) + self.offset, self.log_std
 
-    def forward(self, pair, groups, alive, goal_f, state_f):
-        return self.distribution(self.features(pair, groups, alive, goal_f, state_f))
+    def forward(self, pair, groups, alive, goal, flight):
+        return self.output(self.features(pair, groups, alive, goal, flight))
 
 
-class DroneNets(GoalMatcherCalls, nn.Module):
-    """Both levels' actors and critics for drones, from a :class:`~masp_lite.config.NetConfig`
-    whose ``action`` is ``throttle`` or ``velocity``; the interface of :class:`~masp_lite.nets.masp.MASPNets`."""
+class DroneNets(MASPNets):
+    """Both levels' actors and critics for drones, from a :class:`~masp_lite.config.NetConfig` whose ``action``
+    is ``throttle`` or ``velocity``: :class:`~masp_lite.nets.masp.MASPNets` with the drone world's part."""
 
+    world, dims = "drone", 3
     sense = DRONE_SENSE  # metres at which the pair features clip (a research subclass may see farther)
-    max_speed = DRONE_SPEED  # what the Goal Matcher's velocities are divided by
+    max_speed = DRONE_SPEED  # what velocities are divided by
+    pair_size, landmark_size = PAIR_FEATURES, LANDMARK_FEATURES
+    inputs_type = DroneExecutorInputs
 
-    def __init__(self, config: NetConfig | None = None, **arch):
-        super().__init__()
-        if config is not None and arch:
-            raise ValueError("DroneNets: expected a NetConfig or keyword settings, not both")
-        self.config = c = config if config is not None else NetConfig(**arch)
-        if c.world != "drone":
-            raise ValueError(f"DroneNets: expected a drone action ({list(ACTION_SIZE)}), got {c.action!r}")
-        if c.fixed_size and c.team_size < 2:
-            raise ValueError(f"DroneNets: an mlp variant needs team_size (the drones it is built for), got "
-                             f"{c.team_size}")
-        variant = c.goal_matcher in ("mlp", "none") or c.executor != "graph"
-        if variant:  # an RL baseline's parts, beside MASP's (built in this order: the same initial weights)
-            from . import variants
-        self.gm = variants.goal_matcher(c, dims=3) if c.goal_matcher == "mlp" else GoalMatcher(c.width, dims=3)
-        self.gm_critic = GoalMatcherCritic(c.width, dims=3)
-        fusion, landmarks = variants.executor_parts(c, PAIR_FEATURES, LANDMARK_FEATURES) if variant else (None, None)
-        self.cae = DroneExecutor(c.width, c.gcn_layers, c.action, c.log_std_init, fusion, landmarks)
-        self.cae_critic = ExecutorCritic(c.width)
+    def build_executor(self, c: NetConfig, fusion: nn.Module | None, goal_embed: nn.Module | None) -> nn.Module:
+        return DroneExecutor(c.width, c.gcn_layers, c.action, c.log_std_init, fusion, goal_embed)
 
-    @property
-    def arch(self) -> dict:
-        return dataclasses.asdict(self.config)
-
-    def cae_inputs(self, obs: dict, goals: torch.Tensor | None, perm: torch.Tensor) -> tuple:
-        """Executor inputs ``(pair, groups, alive, goal_f, state_f)`` for goal indices ``goals`` (B, N);
-        ``goals`` None (the goal-free baselines): every landmark instead
-        (:func:`~masp_lite.nets.baselines.landmark_features`)."""
-        pos, vel = obs["agent_pos"], obs["agent_vel"]
-        if goals is None:
-            goal_f = landmark_features(pos, vel, obs["landmark_pos"], obs["covered"], DRONE_SPEED)
-        else:
-            goal_pos = torch.gather(obs["landmark_pos"], 1, goals.unsqueeze(-1).expand_as(pos))
-            goal_f = goal_features(pos, vel, goal_pos, DRONE_SPEED)
-        return (pair_features(pos, vel, self.sense, DRONE_SPEED), group_division(perm, self.config.group_size),
-                obs["alive"], goal_f, drone_state_features(obs))
-
-    def cae_logits(self, inputs: tuple):
-        """``(mean, log_std)`` of the executor's Gaussian (the name is the particle networks')."""
-        return self.cae(*inputs)
-
-    def cae_forward(self, inputs: tuple, obs: dict, horizon: int):
-        """``((mean, log_std), values)`` from one pass of the fusion."""
-        feats = self.cae.features(*inputs)
-        return self.cae.distribution(feats), self.cae_critic(feats, critic_extra(self.config, obs, horizon))
+    def own_features(self, obs: dict) -> torch.Tensor:
+        """The executor's input beside the team and the goal: the drone's flight state."""
+        return drone_state_features(obs)

@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import torch
 
-from ..algos.team import hungarian_goals
-from ..nets.decoding import DECODERS, joint_argmax, random_goals
+from ..algos.goal_sources import DECODES, goal_source
+from ..nets.decoding import joint_argmax
 from ..nets.goal_draw import sequential_sample
 from ..nets.masp import MASPNets
 from ..weights import load_weights, method_checkpoint
@@ -105,13 +105,15 @@ class MASPPolicy:
                              "only")
 
     def _setup(self, global_step, deterministic, seed, decode):
-        if decode not in (*DECODERS, "hungarian"):
-            raise ValueError(f"decode: expected one of {[*DECODERS, 'hungarian']}, got {decode!r}")
+        if decode not in DECODES:
+            raise ValueError(f"decode: expected one of {list(DECODES)}, got {decode!r}")
         self.global_step, self.deterministic, self.seed = global_step, bool(deterministic), int(seed)
         self.decode = decode
         self.scale = self.world.scenario.world_size / 2
         self.generator = torch.Generator().manual_seed(self.seed)
-        self.goals, self.drawn_for = None, None
+        self.goals = None
+        # None: the Goal Matcher decodes the goals; else an ablation's or a baseline's source, or the diagnostic
+        self.goal_source = goal_source(self.nets.config.goal_matcher, decode, self.resample)
 
     @classmethod
     def from_nets(cls, world, nets: MASPNets, seed: int = 0, deterministic: bool = True,
@@ -120,7 +122,7 @@ class MASPPolicy:
         return cls(world, checkpoint=nets, seed=seed, deterministic=deterministic, decode=decode)
 
     def reset(self, obs) -> None:
-        self.goals, self.drawn_for = None, None
+        self.goals = None
 
     def _pick(self, logits):
         if self.deterministic:
@@ -140,29 +142,22 @@ class MASPPolicy:
     def choose_goals(self, obs) -> torch.Tensor:
         """The goals (B, N) this policy's goal source picks for ``obs``: one global step's choice.
 
-        The Goal Matcher decoded by ``decode`` (or the Hungarian diagnostic, or the variant's own
-        source: random goals, ``h-mappo``'s Hungarian ones). :meth:`act` calls it every global step;
+        The Goal Matcher decoded by ``decode``, or :attr:`goal_source`'s (:mod:`masp_lite.algos.goal_sources`:
+        the Hungarian diagnostic, or the weights' own source: random goals, ``h-mappo``'s Hungarian ones, none
+        for the goal-free baselines). :meth:`act` calls it every global step;
         the drone planners' ``goals="masp"`` (:mod:`masp_lite.policies.goal_sources`) call it to fly
         MASP's goals with their own flight, so the two read one decoding."""
         mask = None
         if self.world.scenario.varying:  # landmarks already reached count for SR; pick among the rest
             mask = ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
-        if self.nets.config.goal_matcher == "random":  # "MASP w. RG"
-            if self.resample or self.goals is None or not torch.equal(obs["alive"], self.drawn_for):
-                self.drawn_for = obs["alive"].clone()
-                return random_goals(obs["alive"], obs["landmark_pos"].shape[1], self.generator, mask)
-            return self.goals
-        if self.decode == "hungarian" or self.nets.config.goal_matcher == "hungarian":
-            # h-mappo, or the diagnostic: the Hungarian reference instead of the Goal Matcher
-            return hungarian_goals(obs["agent_pos"], obs["landmark_pos"], obs["alive"], mask)
+        if self.goal_source is not None:
+            return self.goal_source(obs, self.goals, mask, self.generator)
         return self._goals(self.nets.gm_logits(obs, self.scale, mask), obs["alive"], mask)
 
     @torch.inference_mode()
     def act(self, obs) -> torch.Tensor:
         due = obs["t"] % self.global_step == 0
-        if self.nets.config.goal_matcher == "none":  # mappo, darl1n: no goals, every landmark in view
-            pass
-        elif self.goals is None or bool(due.any()):
+        if self.goals is None or bool(due.any()):  # goals None throughout for the goal-free baselines
             new = self.choose_goals(obs)
             self.goals = new if self.goals is None else torch.where(due.unsqueeze(-1), new, self.goals)
         B, N = obs["alive"].shape
