@@ -168,13 +168,21 @@ CHEATS = {
     "position_loop": "return geometric.position_loop(pos, vel, target_pos, target_vel, target_acc, kx, kv, max_speed)",
     "coverage": "alive = torch.ones(agent_pos.shape[:2], dtype=torch.bool)\n"
                 "return coverage_reward(agent_pos, landmark_pos, agent_collisions, alive, reach, world_size)",
-    "htamp_inputs": 'return MASPNets(goal_matcher="mlp", executor="mlp", team_size=n).cae.fusion.net[0].in_features',
-    "agent_first": "return ablations.agent_first(n)",
+    "nearest_view": "idx, ok = nearest_others(pair, alive, count)\n"
+                    "rows = torch.gather(pair, 2, idx.unsqueeze(-1).expand(*idx.shape, pair.shape[-1]))\n"
+                    "return rows.flatten(2)",
+    "gm_mlp_input": "B, N, _ = agent_pos.shape\n"
+                    "agents = (agent_pos * alive.unsqueeze(-1))[:, ablations.agent_first(N)].reshape(B, N, -1)\n"
+                    "return torch.cat([agents, goal_pos.reshape(B, 1, -1).expand(B, N, -1)], dim=-1)",
     "group_count": "return fusion.group_division(torch.arange(num_agents)[None], group_size).shape[2]",
     "gaussian_log_prob": "return gaussian_log_prob(mean, log_std, actions)",
-    "crash_charge": "return crash_charge(dist, crashed, steps_left, world_size, beta)",
+    "drone_reward": '_, cfg, overrides = method_config(None, ["num_envs=1", f"distance_coef={beta}"], scenario)\n'
+                    "trainer = DroneMASPTrainer(scenario, cfg, overrides=overrides)\n"
+                    'return trainer.executor_reward(obs, goals, {"agent_collisions": collisions}, alive, t)',
     "steps_cut": "return _cut(base_steps, masp_steps)",
-    "finished_episodes": "return finished_episodes(td)",
+    "episode_entries": "env = ParticleTorchRLEnv(scenario, num_envs=actions.shape[0], seed=seed)\n"
+                       "td = env.rollout(actions.shape[1])\n"
+                       'return {k: td["next", "episode", k] for k in METRICS}',
 }
 
 
@@ -221,12 +229,6 @@ def test_every_graded_exercise_refuses_a_call_to_the_library(path, tmp_path, mon
     assert os.environ["MASP_LITE_FAST"] == "1"
 
 
-#: Answers still shorter than three lines of code, to be deepened (issue 53): chapter 09's input
-#: size, chapter 10's agent order, chapter 11's crash charge (chapter 11 is being rewritten), chapter
-#: 13's finished episodes. No other exercise may join them.
-SHORT_ANSWERS_LEFT = {"htamp_inputs", "agent_first", "crash_charge", "finished_episodes"}
-
-
 def test_every_reference_answer_is_at_least_three_lines_of_code():
     """An exercise asks for a step the learner reasons out, not one broadcast or one formula."""
     short = {}
@@ -238,4 +240,4 @@ def test_every_reference_answer_is_at_least_three_lines_of_code():
             lines = [line for line in body.splitlines() if line.strip() and not line.strip().startswith("#")]
             if len(lines) < 3:
                 short[_grade(cell)["grade_id"]] = (path.name, len(lines))
-    assert set(short) <= SHORT_ANSWERS_LEFT, {k: v for k, v in short.items() if k not in SHORT_ANSWERS_LEFT}
+    assert short == {}, f"answers shorter than three lines of code (grade id: notebook, lines): {short}"

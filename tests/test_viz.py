@@ -375,3 +375,29 @@ def test_progress_line_is_one_line_that_updates(capsys):
     assert err.rstrip().endswith("MASP on mpe-5: iteration 3/3, 300 environment steps, 0 s, done")
     with pytest.raises(ValueError, match="positive number"):
         ProgressLine(0)
+
+
+def test_progress_keys_name_only_the_lines_drawn():
+    """A level that is not trained (R_GM under Hungarian goals, chapter 11) is NaN throughout: it draws
+    no line, so no key may name it; the panel says it was not recorded."""
+    import matplotlib.pyplot as plt
+
+    from masp_lite.viz.progress import plot_progress
+    n = 12
+    cols = {k: np.linspace(0, 1, n) for k in ("train_sr", "train_cr", "cae_reward")}
+    cols.update(env_steps=100.0 * np.arange(1, n + 1), gm_reward=np.full(n, np.nan), train_steps=np.full(n, np.nan),
+                eval_sr=np.full(n, np.nan), eval_steps=np.full(n, np.nan), eval_cr=np.full(n, np.nan))
+    fig = plot_progress(cols, "executor only")
+    keys = [(ax.get_legend(), ax.get_lines()) for ax in fig.axes if ax.get_legend() is not None]
+    keys += [(legend, [line for ax in fig.axes[:3] for line in ax.get_lines()]) for legend in fig.legends]
+    assert keys, "expected a key"
+    for legend, lines in keys:
+        drawn = {line.get_label() for line in lines if np.isfinite(np.asarray(line.get_ydata(), float)).any()}
+        named = [t.get_text() for t in legend.get_texts()]
+        assert named and set(named) <= drawn, f"the key names {named}, the lines drawn are {sorted(drawn)}"
+    rewards = fig.axes[3]
+    assert [t.get_text() for t in rewards.get_legend().get_texts()] == ["R_CAE (eq. 5)"]
+    assert rewards.get_lines()[0].get_color() == "C1"                    # R_CAE keeps its colour without R_GM
+    assert rewards.get_legend().get_title().get_text() == "no R_GM recorded"
+    assert fig.axes[1].get_lines() == []                                 # no Steps ever: nothing drawn there
+    plt.close(fig)

@@ -136,6 +136,11 @@ def last_evaluation(columns: dict) -> dict | None:
             **{k: float(columns[f"eval_{k}"][i]) for k in ("sr", "steps", "cr")}}
 
 
+def _recorded(values) -> bool:
+    """Whether a progress column holds any number (a column of NaN draws no line, so it gets no key either)."""
+    return bool(np.isfinite(np.asarray(values, dtype=float)).any())
+
+
 def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, baseline_label: str = "h-greedy"):
     """One figure of training curves against environment steps; returns the figure.
 
@@ -144,6 +149,8 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
     ``baseline`` (``{"sr", "steps", "cr"}`` means, e.g. h-greedy's) adds a dashed line,
     labelled ``baseline_label``, to each. A fourth panel shows the mean rewards of both
     levels, R_GM (eq. 1) and R_CAE (eq. 5). Call ``plt.show()`` (or let the notebook show it).
+    A column without a number (NaN throughout: R_GM of a run whose Goal Matcher is not trained)
+    draws no line and has no key entry; the rewards panel's key says which reward was not recorded.
     The three metric panels share one key, under them, so that it never hides a curve.
     The step axes carry at most five ticks in thousands / millions (``50k``, ``1.2M``), so
     their labels never run into each other on the narrow panels.
@@ -154,20 +161,37 @@ def plot_progress(columns: dict, title: str = "", baseline: dict | None = None, 
     x = columns["env_steps"]
     fig, axes = plt.subplots(1, 4, figsize=(16, 3.2))
     for ax, (key, label) in zip(axes, [("sr", "SR ↑"), ("steps", "Steps ↓"), ("cr", "CR ↓")]):
-        ax.plot(x, columns[f"train_{key}"], alpha=0.5, label="training rollouts (sampled)")
+        if _recorded(columns[f"train_{key}"]):
+            ax.plot(x, columns[f"train_{key}"], color="C0", alpha=0.5, label="training rollouts (sampled)")
         evaluated = ~np.isnan(columns[f"eval_{key}"])
         if evaluated.any():
-            ax.plot(x[evaluated], columns[f"eval_{key}"][evaluated], "o-", label="evaluation (deterministic)")
+            ax.plot(x[evaluated], columns[f"eval_{key}"][evaluated], "o-", color="C1",
+                    label="evaluation (deterministic)")
         if baseline is not None and baseline.get(key) is not None:
             ax.axhline(baseline[key], color="k", ls="--", lw=1, label=baseline_label)
         ax.set(title=label, xlabel="environment steps")
     # one key for the three metric panels, under them: inside a panel it covered the evaluation
     # points and the baseline (an SR curve near 1 fills the top of its panel, the bottom of Steps')
-    handles, labels = axes[0].get_legend_handles_labels()
-    axes[3].plot(x, columns["gm_reward"], label="R_GM (eq. 1)")
-    axes[3].plot(x, columns["cae_reward"], label="R_CAE (eq. 5)")
-    axes[3].set(title="mean rewards", xlabel="environment steps")
-    axes[3].legend(fontsize=8)
+    handles, labels = [], []
+    for ax in axes[:3]:
+        for handle, text in zip(*ax.get_legend_handles_labels()):
+            if text not in labels:
+                handles.append(handle)
+                labels.append(text)
+    # a level that is not trained (the Goal Matcher under Hungarian goals) has no reward: NaN throughout,
+    # so it gets no line, and no entry in the key, only a note
+    rewards, unrecorded = axes[3], []
+    for key, label, color in (("gm_reward", "R_GM (eq. 1)", "C0"), ("cae_reward", "R_CAE (eq. 5)", "C1")):
+        if _recorded(columns[key]):
+            rewards.plot(x, columns[key], color=color, label=label)
+        else:
+            unrecorded.append(label.split()[0])
+    rewards.set(title="mean rewards", xlabel="environment steps")
+    note = f"no {' or '.join(unrecorded)} recorded" if unrecorded else None
+    if rewards.get_lines():  # the note heads the key, which matplotlib places away from the curves
+        rewards.legend(fontsize=8, title=note, title_fontsize=7)
+    else:
+        rewards.text(0.5, 0.5, note, transform=rewards.transAxes, ha="center", fontsize=8, color="0.4")
     for ax in axes:
         ax.xaxis.set_major_locator(MaxNLocator(nbins=4, integer=True))
         ax.xaxis.set_major_formatter(EngFormatter(sep=""))
