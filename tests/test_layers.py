@@ -264,3 +264,26 @@ def test_only_the_reproduction_room_knows_the_repository(module):
 def test_the_repository_check_can_fail():
     assert _names_the_repository(PACKAGE / "reproduction" / "__init__.py")  # the room itself names it
     assert _names_the_repository(PACKAGE / "reproduction" / "histories.py")  # a path built from "results"
+
+
+# --------------------------------------------------------------------------- functions that read in one screen
+#: The longest a function of the package may be, in lines (decorators aside).
+FUNCTION_LINES = 80
+
+
+def _long_functions(path: Path, source: str | None = None) -> list[str]:
+    tree = ast.parse(source if source is not None else path.read_text())
+    return [f"{path.name}:{node.lineno} {node.name} ({node.end_lineno - node.lineno + 1} lines)"
+            for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+            and node.end_lineno - node.lineno + 1 > FUNCTION_LINES]
+
+
+def test_no_function_is_longer_than_a_screen():
+    found = [f for p in sorted(PACKAGE.rglob("*.py")) for f in _long_functions(p)]
+    assert not found, f"functions over {FUNCTION_LINES} lines: {found}"
+
+
+def test_the_length_check_can_fail():
+    body = "".join(f"    x{k} = {k}\n" for k in range(FUNCTION_LINES))
+    assert _long_functions(PACKAGE / "fake.py", f"def f():\n{body}") == [f"fake.py:1 f ({FUNCTION_LINES + 1} lines)"]
+    assert _long_functions(PACKAGE / "fake.py", f"def f():\n{body[:-len('    x79 = 79')-1]}") == []
