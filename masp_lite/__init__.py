@@ -10,7 +10,7 @@ Reading path — MASP itself, in the order of the paper's method section (13 fil
 =====  ==========================  =====  ================================================
 step   file                        lines  what it holds
 =====  ==========================  =====  ================================================
-1      ``envs/particle.py``          308  the task: MPE's world, batched over episodes
+1      ``envs/particle.py``          313  the task: MPE's world, batched over episodes
 2      ``evaluation/metrics.py``     109  SR, Steps, CR, as the paper defines them
 3      ``algos/assignment.py``       158  the Hungarian assignment (R_GM's reference)
 4      ``nets/encoders.py``          177  Self-Encoder and Cross-Encoder (eqs. 2-4)
@@ -20,9 +20,9 @@ step   file                        lines  what it holds
 7      ``nets/goal_draw.py``          85  matching scores -> distinct goals, in training
 8      ``nets/decoding.py``           84  matching scores -> distinct goals, when acting
 9      ``algos/rewards.py``           97  R_GM (eq. 1) and R_CAE (eq. 5)
-10     ``algos/mappo.py``            206  MAPPO: GAE, clipped surrogate, value normalisation
-11     ``algos/masp_trainer.py``     250  one rollout loop and both levels' PPO updates
-12     ``policies/masp.py``          168  the trained networks acting in a world
+10     ``algos/mappo.py``            240  MAPPO: GAE, clipped surrogate, value normalisation
+11     ``algos/masp_trainer.py``     264  one rollout loop and both levels' PPO updates
+12     ``policies/masp.py``          176  the trained networks acting in a world
 =====  ==========================  =====  ================================================
 
 Beside the path, not inside it: the ablations' and baselines' parts (``nets/variants.py``,

@@ -11,6 +11,8 @@
 * :func:`read_bounded` — a file a user named (a record, a plan, a weights file, a kept
   history) is read only when it is a regular file, and only up to a size limit: a FIFO named
   ``x.json`` or ``/dev/zero`` is refused at once instead of hanging or filling memory.
+  :func:`file_bytes` is the same read done once while the file is unchanged, so that a
+  file's hash, its checks and its load share one read; :func:`sha256` is its hash.
 
 Both raise one clear error naming the file; :func:`atomic_write` lets the ``OSError`` of a
 full disk or a read-only folder through (with the target untouched), so a caller that can go
@@ -19,11 +21,13 @@ on (training) decides what to say.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import stat
 from pathlib import Path
 
-__all__ = ["atomic_write", "atomic_target", "read_bounded", "clean_orphans", "TMP_PREFIX", "MAX_READ"]
+__all__ = ["atomic_write", "atomic_target", "read_bounded", "file_bytes", "sha256", "clean_orphans", "TMP_PREFIX",
+           "MAX_READ"]
 
 #: The start of every temporary file's name: ``.masp-tmp.PID.RANDOM.NAME`` (it keeps the target's suffix).
 TMP_PREFIX = ".masp-tmp."
@@ -158,3 +162,31 @@ def read_bounded(path, limit: int = MAX_READ, what: str = "file") -> bytes:
     if size > limit:
         raise ValueError(f"{str(path)!r}: more than the {limit:,} bytes a {what} may have")
     return b"".join(chunks)
+
+
+#: The bytes :func:`file_bytes` read, by (path, inode, size, modification and change time, limit): the 64 latest.
+_READS: dict[tuple, bytes] = {}
+
+
+def file_bytes(path, limit: int = MAX_READ, what: str = "file") -> bytes:
+    """:func:`read_bounded`, read from disk once while the file is unchanged (its hash, its check and its
+    load share the bytes).
+
+    Unchanged means the same inode, size, modification and change time: a copy that keeps the
+    modification time (``cp -p``) still changes the change time, which no user can set back."""
+    try:
+        st = Path(path).stat()
+    except OSError:
+        return read_bounded(path, limit, what)  # its one clear error
+    key = (str(Path(path).resolve()), st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns, limit)
+    if key not in _READS:
+        data = read_bounded(key[0], limit, what)
+        if len(_READS) >= 64:
+            _READS.pop(next(iter(_READS)))
+        _READS[key] = data
+    return _READS[key]
+
+
+def sha256(path, limit: int = MAX_READ, what: str = "file") -> str:
+    """The SHA-256 of a file's bytes (hex), as :func:`file_bytes` reads them."""
+    return hashlib.sha256(file_bytes(path, limit, what)).hexdigest()

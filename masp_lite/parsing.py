@@ -9,17 +9,18 @@ import dataclasses
 import types
 import typing
 
-from .config import _PARTS, TrainConfig
-
 __all__ = ["parse_value", "parse_sets", "field_types"]
 
 
 def field_types(cls) -> dict[str, object]:
-    """``{field name: type}`` of a dataclass (of every part, for :class:`TrainConfig`)."""
-    if cls is TrainConfig:
-        return {k: v for c in _PARTS.values() for k, v in field_types(c).items()}
+    """``{field name: type}`` of a dataclass; a field that is itself a dataclass gives its own fields instead
+    (:class:`~masp_lite.config.TrainConfig`'s four parts: ``lr``, not ``ppo``, as ``--set`` names them)."""
     hints = typing.get_type_hints(cls)
-    return {f.name: hints[f.name] for f in dataclasses.fields(cls)}
+    out = {}
+    for f in dataclasses.fields(cls):
+        typ = hints[f.name]
+        out.update(field_types(typ) if dataclasses.is_dataclass(typ) else {f.name: typ})
+    return out
 
 
 def _guess(text: str):

@@ -426,9 +426,9 @@ def test_a_weights_file_that_is_a_pipe_or_a_device_is_refused_at_once(tmp_path, 
     import os
     os.mkfifo(tmp_path / "w.pt")
     assert "expected an existing weights file" in evaluate_error(capsys, tmp_path / "w.pt")  # no hang
-    from masp_lite.weights import file_bytes
+    from masp_lite.weights import weights_bytes
     with pytest.raises(ValueError, match="not a regular file"):
-        file_bytes(tmp_path / "w.pt")  # read directly, it would wait for a writer forever
+        weights_bytes(tmp_path / "w.pt")  # read directly, it would wait for a writer forever
 
 
 def test_a_replaced_weights_file_is_read_again_even_with_the_same_size_and_time(run_dir, tmp_path):

@@ -4,7 +4,8 @@ Layers, lowest first: ``files`` (the one atomic write, the one bounded reader) -
 ``threads`` -> ``parsing`` -> ``nets`` / ``planners`` -> ``algos`` / ``weights`` -> ``policies`` -> ``evaluation`` /
 ``training`` / ``viz`` / ``course`` / ``primer`` -> ``recipes`` -> ``budgets`` (a recipe's stage at another budget)
 -> ``reproduction`` (the only code that knows the repository: records, paper numbers, the training plan) -> ``bench``
-(timings beside the paper's) -> ``cli``. A module
+(timings beside the paper's) -> ``cli``; ``evaluation.metrics`` (the metrics' one definition, torch only) sits
+below ``algos``, whose trainer measures its rollouts with it. A module
 may import its own package and anything in a lower layer; imports inside functions (lazy
 ones) count too.
 """
@@ -21,6 +22,11 @@ PACKAGE = Path(__file__).resolve().parents[1] / "masp_lite"
 LAYER = {"files": -1, "envs": 0, "config": 0, "threads": 0, "parsing": 0.5, "nets": 1, "planners": 1, "algos": 2,
          "weights": 2, "policies": 3, "evaluation": 4, "training": 5, "viz": 5, "course": 5, "primer": 5,
          "recipes": 5.2, "budgets": 5.3, "reproduction": 5.5, "bench": 5.7, "cli": 6, "__main__": 7, "__init__": 7}
+
+
+#: Modules with a layer below their package's: ``evaluation.metrics``, the one definition of SR, Steps and CR
+#: (torch only), which training measures its rollouts with as ``evaluate`` measures a method's.
+MODULE_LAYER = {"evaluation.metrics": 1.5}
 
 
 def _module_name(path: Path) -> str:
@@ -63,9 +69,13 @@ def _graph() -> dict[str, set[str]]:
     return {m: {r for i in _imports(p) if (r := _resolve(i)) and r != m} for m, p in MODULES.items()}
 
 
+def _layer(name: str) -> float:
+    return MODULE_LAYER.get(".".join(name.split(".")[1:3]), LAYER[_top(name)])
+
+
 def _upward(module: str, targets) -> list[str]:
     src = _top(module)
-    return sorted(t for t in targets if _top(t) != src and t != "masp_lite" and LAYER[_top(t)] >= LAYER[src])
+    return sorted(t for t in targets if _top(t) != src and t != "masp_lite" and _layer(t) >= _layer(module))
 
 
 def _top(name: str) -> str:
@@ -125,8 +135,10 @@ PARTICLE_ONLY = ["masp_lite.algos.masp_trainer", "masp_lite.training", "masp_lit
 #: ``nets/kernels.py`` (267 lines), which the encoders and the fusion import at their first chunked forward: a
 #: training run loads them at its first update (2,712 lines then), importing or reading MASP's path does not; 2,536
 #: once the networks' input features are a module of their own (``nets/features.py``, both worlds' networks read
-#: it: a module header more) and the executor's inputs are named (``ExecutorInputs``).
-TRAINER_LINES = 2_550
+#: it: a module header more) and the executor's inputs are named (``ExecutorInputs``);
+#: then PPO reports its health (approximate KL, clip fraction, explained variance: ``algos/mappo.py``) and the
+#: trainer measures SR and Steps with ``evaluation/metrics.py``, which it loads at its first rollout (2,590).
+TRAINER_LINES = 2_600
 
 
 def _top_level_imports(path: Path, name: str) -> set[str]:
@@ -254,3 +266,26 @@ def test_only_the_reproduction_room_knows_the_repository(module):
 def test_the_repository_check_can_fail():
     assert _names_the_repository(PACKAGE / "reproduction" / "__init__.py")  # the room itself names it
     assert _names_the_repository(PACKAGE / "reproduction" / "histories.py")  # a path built from "results"
+
+
+# --------------------------------------------------------------------------- functions that read in one screen
+#: The longest a function of the package may be, in lines (decorators aside).
+FUNCTION_LINES = 80
+
+
+def _long_functions(path: Path, source: str | None = None) -> list[str]:
+    tree = ast.parse(source if source is not None else path.read_text())
+    return [f"{path.name}:{node.lineno} {node.name} ({node.end_lineno - node.lineno + 1} lines)"
+            for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+            and node.end_lineno - node.lineno + 1 > FUNCTION_LINES]
+
+
+def test_no_function_is_longer_than_a_screen():
+    found = [f for p in sorted(PACKAGE.rglob("*.py")) for f in _long_functions(p)]
+    assert not found, f"functions over {FUNCTION_LINES} lines: {found}"
+
+
+def test_the_length_check_can_fail():
+    body = "".join(f"    x{k} = {k}\n" for k in range(FUNCTION_LINES))
+    assert _long_functions(PACKAGE / "fake.py", f"def f():\n{body}") == [f"fake.py:1 f ({FUNCTION_LINES + 1} lines)"]
+    assert _long_functions(PACKAGE / "fake.py", f"def f():\n{body[:-len('    x79 = 79')-1]}") == []

@@ -1,7 +1,10 @@
 """MAPPO pieces and MASP's rewards on hand-worked numbers."""
+import math
+
 import pytest
 import torch
 
+from masp_lite.algos import mappo
 from masp_lite.algos.assignment import hungarian
 from masp_lite.algos.mappo import RolloutStorage, ValueNorm, clipped_surrogate, gae, ppo_update, value_loss
 from masp_lite.algos.rewards import executor_reward, goal_matcher_reward, repeat_counts
@@ -87,10 +90,59 @@ def test_ppo_update_moves_policy_towards_positive_advantages():
     cfg = PPOConfig(ppo_epochs=3, num_minibatches=2)
     stats = ppo_update(data, lambda mb: (actor(mb["x"]), critic(mb["x"]).squeeze(-1)), actor, critic, opt, cfg,
                        ValueNorm(), torch.Generator().manual_seed(0))
-    assert set(stats) == {"policy_loss", "value_loss", "entropy"}
+    assert tuple(stats) == mappo.UPDATE_STATS
+    assert stats["approx_kl"] > 0 and 0 <= stats["clip_fraction"] <= 1  # the policy moved
     with torch.no_grad():
         after = torch.softmax(actor(x[0, 0, 0]), -1)
     assert after[0] > before[0] and after[1] < before[1]
+
+
+def _one_minibatch_update(old_shift: torch.Tensor, returns: torch.Tensor, advantages: torch.Tensor) -> dict:
+    """``ppo_update`` with one epoch of one minibatch and a zero learning rate (the policy stays put), the stored
+    log-probabilities those of the actor minus ``old_shift``."""
+    torch.manual_seed(0)
+    actor, critic = torch.nn.Linear(2, 3), torch.nn.Linear(2, 1)
+    x = torch.randn(2, 2, 2, 2)
+    actions = torch.zeros(2, 2, 2, dtype=torch.long)
+    with torch.no_grad():
+        logp = torch.log_softmax(actor(x), -1)[..., 0]
+    data = {"x": x, "actions": actions, "logp": logp - old_shift, "values": torch.zeros(2, 2, 2),
+            "returns": returns, "advantages": advantages, "mask": torch.ones(2, 2, 2, dtype=torch.bool)}
+    opt = torch.optim.Adam(list(actor.parameters()) + list(critic.parameters()), lr=0.0)
+    return ppo_update(data, lambda mb: (actor(mb["x"]), critic(mb["x"]).squeeze(-1)), actor, critic, opt,
+                      PPOConfig(ppo_epochs=1, num_minibatches=1, clip=0.2), ValueNorm(),
+                      torch.Generator().manual_seed(0))
+
+
+def test_ppo_health_approximate_kl_and_clip_fraction_by_hand():
+    """Ratio 1 everywhere: KL 0, nothing clipped. Half the samples at log-ratio 0.5 (ratio 1.65, outside
+    [0.8, 1.2]): clip fraction 1/2 and KL the mean of (rho - 1) - log rho = (e^0.5 - 1.5) / 2."""
+    returns, adv = torch.randn(2, 2, 2, generator=torch.Generator().manual_seed(1)), torch.ones(2, 2, 2)
+    same = _one_minibatch_update(torch.zeros(2, 2, 2), returns, adv)
+    assert same["approx_kl"] == pytest.approx(0.0, abs=1e-7) and same["clip_fraction"] == 0.0
+    shift = torch.zeros(2, 2, 2)
+    shift[0] = 0.5  # the new policy likes these actions e^0.5 times more than the one that collected them
+    moved = _one_minibatch_update(shift, returns, adv)
+    assert moved["clip_fraction"] == pytest.approx(0.5)
+    assert moved["approx_kl"] == pytest.approx((math.exp(0.5) - 1.5) / 2, rel=1e-5)
+
+
+def test_explained_variance_of_the_values_at_collection():
+    """1 when the values are the returns, 0 for their mean, negative when worse; masked entries do not count.
+    ``ppo_update`` reads the values at collection as returns minus the raw advantages."""
+    r = torch.tensor([1.0, 2.0, 3.0, 4.0])
+    assert mappo.explained_variance(r, r) == pytest.approx(1.0)
+    assert mappo.explained_variance(torch.full((4,), 2.5), r) == pytest.approx(0.0)
+    assert mappo.explained_variance(r.flip(0), r) == pytest.approx(1 - 5.0 / 1.25)  # Var(r - flip r) = 5, Var(r) = 1.25
+    mask = torch.tensor([True, True, True, False])
+    assert mappo.explained_variance(torch.tensor([1.0, 2.0, 3.0, 100.0]), r, mask) == pytest.approx(1.0)
+    assert math.isnan(mappo.explained_variance(r, torch.ones(4)))  # returns that do not vary: undefined
+    returns = torch.randn(2, 2, 2, generator=torch.Generator().manual_seed(2))
+    assert _one_minibatch_update(torch.zeros(2, 2, 2), returns, torch.zeros(2, 2, 2))["explained_variance"] == \
+        pytest.approx(1.0)  # zero advantages: the critic predicted every return
+    adv = returns - returns.mean()  # values at collection all equal the mean return
+    assert _one_minibatch_update(torch.zeros(2, 2, 2), returns, adv)["explained_variance"] == \
+        pytest.approx(0.0, abs=1e-6)
 
 
 def test_config_rejects_bad_values():

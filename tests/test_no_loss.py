@@ -402,8 +402,6 @@ def _writes(path):
 def test_every_file_the_product_writes_goes_through_the_one_atomic_write():
     from pathlib import Path
 
-    from masp_lite import files, weights
-    assert weights.atomic_write_bytes is files.atomic_write  # the name its older callers import: the same function
     package = Path(__file__).resolve().parents[1] / "masp_lite"
     stray = [f"{p.relative_to(package)}:{line} {name}" for p in sorted(package.rglob("*.py")) if p.name != "files.py"
              for name, line in _writes(p) if (str(p.relative_to(package)), name) not in _OWN_WRITES]

@@ -11,10 +11,10 @@ import pytest
 import torch
 
 from masp_lite.config import TrainConfig
+from masp_lite.files import sha256
 from masp_lite.recipes import RECIPES
 from masp_lite.reproduction import plan
 from masp_lite.reproduction.plan import Run, Stage, describe, load_plan, read_plan, run_plan, save_plan
-from masp_lite.weights import sha256
 
 ROOT = Path(__file__).resolve().parents[1]
 

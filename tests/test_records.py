@@ -19,8 +19,8 @@ from pathlib import Path
 import pytest
 
 from masp_lite.envs import MPE2_WORLD, get_scenario
+from masp_lite.files import sha256
 from masp_lite.reproduction.reproduce import load_records, re_evaluate, re_evaluation_cost_s
-from masp_lite.weights import sha256
 
 ROOT = Path(__file__).resolve().parents[1]
 BUDGET_S = 30.0

@@ -61,11 +61,12 @@ def test_evaluate_records_asks_for_every_registered_method(monkeypatch):
 
 def test_evaluate_records_runs_kept_weights_only_where_they_fly(monkeypatch):
     calls = []
-    monkeypatch.setattr(rp, "evaluate", lambda m, sc, **kw: calls.append((m, sc, kw["method_options"])) or _rec(m, sc))
+    monkeypatch.setattr(rp, "evaluate", lambda m, sc, **kw: calls.append((m, sc, kw.get("checkpoint"))) or _rec(m, sc))
     rp.evaluate_records("faithful", episodes=1)
-    kept = {sc for m, sc, opts in calls if opts}
+    kept = {sc for m, sc, checkpoint in calls if checkpoint}
     assert kept == {"mpe-20", "mpe-50", "mpe-20to10", "mpe-50to20"}          # the mpe-20 weights: not on mpe-5
-    assert {sc for m, sc, opts in calls if not opts} == {"mpe-5", "mpe-20", "mpe-50", "mpe-20to10", "mpe-50to20"}
+    assert {sc for m, sc, checkpoint in calls if not checkpoint} == {"mpe-5", "mpe-20", "mpe-50", "mpe-20to10",
+                                                                     "mpe-50to20"}
 
 
 def test_cli(tmp_path, capsys):
@@ -237,8 +238,10 @@ def test_reproduce_evaluates_each_distinct_run_once(monkeypatch, capsys):
     calls = []
 
     def fake(m, sc, **kw):
-        calls.append(json.dumps([m, sc, kw.get("method_options"), kw.get("num_envs")], sort_keys=True))
-        extra = {k: kw[k] for k in ("method_options", "num_envs") if kw.get(k)}
+        calls.append(json.dumps([m, sc, kw.get("method_options"), kw.get("checkpoint"), kw.get("num_envs")],
+                                sort_keys=True))
+        options = {**kw.get("method_options", {}), **({"checkpoint": kw["checkpoint"]} if kw.get("checkpoint") else {})}
+        extra = {k: v for k, v in (("method_options", options), ("num_envs", kw.get("num_envs"))) if v}
         return _rec(m, sc, **extra)
     monkeypatch.setattr(rp, "evaluate", fake)
     parser = argparse.ArgumentParser()
@@ -246,7 +249,7 @@ def test_reproduce_evaluates_each_distinct_run_once(monkeypatch, capsys):
     cli.run(parser.parse_args(["--table", "faithful", "--table", "mpe", "--table", "claims", "--format", "text",
                                "--quick"]))
     assert calls and len(calls) == len(set(calls))
-    assert calls.count(json.dumps(["masp", "mpe-5", {}, None], sort_keys=True)) == 1
+    assert calls.count(json.dumps(["masp", "mpe-5", {}, None, None], sort_keys=True)) == 1
     assert "MPE, N = 5 / 20 / 50" in capsys.readouterr().out
 
 

@@ -9,10 +9,12 @@ import hashlib
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
 from masp_lite.training import method_config, train
+from masp_lite.viz.progress import read_progress
 
 DATA = Path(__file__).resolve().parent / "data" / "before-issue-37"
 TINY = ["num_envs=2", "eval_every=0", "eval_episodes=2", "width=8", "ppo_epochs=1", "gm_ppo_epochs=1",
@@ -40,3 +42,6 @@ def _resume(kind, tmp_path):
     nets = torch.load(out / "state.pt", weights_only=True)["nets"]
     got = hashlib.sha256(b"".join(nets[k].numpy().tobytes() for k in sorted(nets))).hexdigest()
     assert got == digest
+    cols = read_progress(out / "progress.csv")  # the old rows have no PPO health; the new ones have it
+    for key in ("gm_approx_kl", "cae_clip_fraction", "cae_explained_variance"):
+        assert np.isnan(cols[key][:2]).all() and np.isfinite(cols[key][2:]).all(), key

@@ -354,3 +354,40 @@ def test_a_trainer_subclass_changes_one_part_and_nothing_else(tmp_path):
         with pytest.raises(ValueError, match="trainer_type: expected a subclass of MASPTrainer"):
             train("mpe-5", cfg, tmp_path / "bad", progress=False, trainer_type=bad)
     assert not (tmp_path / "bad").exists()
+
+
+class _Replay:
+    """A policy that sends, step by step, the commands a training rollout sent its world."""
+
+    def __init__(self, commands):
+        self.commands = commands
+
+    def reset(self, obs):
+        self.t = 0
+
+    def act(self, obs):
+        self.t += 1
+        return self.commands[self.t - 1]
+
+
+@pytest.mark.parametrize("scenario", ["mpe-5", "mpe-20to10"])
+def test_training_measures_sr_and_steps_as_evaluate_does(scenario):
+    """The SR, Steps and CR of a training rollout (the shipped networks, sampling) are those of evaluate's
+    metrics on the same episodes, replayed in a fresh world of the same seed: a shrinking team included,
+    whose SR counts the landmarks ever reached, not those covered at the end."""
+    from masp_lite.algos.masp_trainer import MASPTrainer
+    from masp_lite.envs import make
+    from masp_lite.evaluation import collision_rate, rollout, steps, success_rate
+
+    nets, _ = load_weights(None, scenario=scenario)
+    trainer = MASPTrainer(scenario, TrainConfig.from_flat({**vars(nets.config), "num_envs": 16}), seed=3)
+    trainer.nets.load_state_dict(nets.state_dict())
+    commands, step = [], trainer.world.step
+    trainer.world.step = lambda command: commands.append(command.clone()) or step(command)
+    _, _, stats = trainer.collect()
+    log, _ = rollout(make(scenario, num_envs=16, seed=3), _Replay(commands), episodes=16)
+    assert stats == pytest.approx({"sr": float(success_rate(log).mean()), "steps": float(steps(log).mean()),
+                                   "cr": float(collision_rate(log).mean())})
+    assert stats["steps"] < log.horizon  # some episode solved (seed 3): Steps is not just the horizon
+    if log.varying:  # the fixed-team rule (covered at the end) would have said less
+        assert stats["sr"] > float(log.covered[:, -1].double().mean())

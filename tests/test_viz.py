@@ -362,6 +362,45 @@ def test_video_controls_strip_stays_below_the_legend_and_final_numbers():
         anim2d.episode_numbers([])
 
 
+def test_ppo_health_reads_new_runs_and_older_ones_without_it(tmp_path):
+    """plot_ppo_health draws both levels' KL, clip fraction and explained variance (a level never trained: none);
+    a progress.csv from before those columns reads and plots as before, and says clearly what it lacks."""
+    import matplotlib.pyplot as plt
+
+    from masp_lite.training import CSV_FIELDS
+    from masp_lite.viz.progress import health_text, plot_ppo_health, plot_progress, read_progress
+    frozen = {f"gm_{k}": "" for k in ("approx_kl", "clip_fraction", "explained_variance")}  # a frozen Goal Matcher
+    cols = read_progress(_progress_csv(tmp_path / "new.csv", [{}, {}, frozen]))
+    fig = plot_ppo_health(cols, "health")
+    assert [ax.get_title() for ax in fig.axes] == ["approximate KL", "clip fraction", "explained variance"]
+    assert [len(ax.lines) for ax in fig.axes] == [2, 2, 2]
+    np.testing.assert_allclose(fig.axes[1].lines[1].get_ydata(), [0.1, 0.2, 0.3])  # the executor's clip fraction
+    plt.close(fig)
+    old = [k for k in CSV_FIELDS if not k.endswith(("approx_kl", "clip_fraction", "explained_variance"))]
+    path = tmp_path / "old.csv"
+    path.write_text(",".join(old) + "\n" + ",".join("1" for _ in old) + "\n")
+    cols = read_progress(path)
+    assert "gm_approx_kl" not in cols and cols["train_sr"][0] == 1.0
+    plt.close(plot_progress(cols))
+    with pytest.raises(ValueError, match="no columns .*'gm_approx_kl'.*expected the progress.csv of a newer run"):
+        plot_ppo_health(cols)
+    row = {"gm_approx_kl": 0.004, "cae_approx_kl": 0.0123, "gm_clip_fraction": 0.02, "cae_clip_fraction": 0.09,
+           "gm_explained_variance": float("nan"), "cae_explained_variance": 0.781}
+    assert health_text(row) == "PPO KL 0.0040/0.0123, clipped 2%/9%, EV -/0.78 (Goal Matcher/executor)"
+    assert health_text({"train_sr": 1.0}) == "PPO KL -/-, clipped -/-, EV -/- (Goal Matcher/executor)"
+    assert health_text(None) == ""
+
+
+def test_progress_line_shows_the_last_iterations_ppo_health(capsys):
+    from types import SimpleNamespace
+
+    from masp_lite.viz.progress import ProgressLine
+    row = {f"{level}_{k}": 0.5 for level in ("gm", "cae") for k in ("approx_kl", "clip_fraction", "explained_variance")}
+    ProgressLine(1, "run", every=0)(SimpleNamespace(iterations=1, env_steps=10, last_row=row))
+    assert capsys.readouterr().err.rstrip().endswith(
+        "done | PPO KL 0.5000/0.5000, clipped 50%/50%, EV 0.50/0.50 (Goal Matcher/executor)")
+
+
 def test_progress_line_is_one_line_that_updates(capsys):
     from types import SimpleNamespace
 

@@ -13,7 +13,9 @@ holds what both levels use, each piece a small function:
   minibatches of (step, world) rows (a row keeps all agents of a world together, since
   the graph networks need the whole team);
 * :func:`sample` — categorical samples (the executor's 5 MPE actions, the Goal Matcher's goals);
-* :func:`ppo_update` — epochs x minibatches of the combined loss, with gradient clipping.
+* :func:`ppo_update` — epochs x minibatches of the combined loss, with gradient clipping; it
+  reports the losses and what CleanRL and Spinning Up log to tell a healthy update from a
+  collapsing one (:data:`UPDATE_STATS`: approximate KL, clip fraction, explained variance).
 
 The settings (:class:`masp_lite.config.PPOConfig`) default to MAGE-X's MAPPO settings
 (lr 7e-4, clip 0.2, entropy 0.01, gamma 0.99,
@@ -29,7 +31,17 @@ from torch import nn
 from ..config import PPOConfig
 
 __all__ = ["gae", "clipped_surrogate", "value_loss", "ValueNorm", "RolloutStorage", "sample", "ppo_update",
-           "NonFiniteError"]
+           "NonFiniteError", "UPDATE_STATS", "HEALTH", "explained_variance"]
+
+UPDATE_STATS = ("policy_loss", "value_loss", "entropy", "approx_kl", "clip_fraction", "explained_variance")
+"""What :func:`ppo_update` reports, in this order: the three loss terms (means over its minibatches), and
+PPO's health: ``approx_kl`` — how far the policy moved from the one that collected the rollout, CleanRL's
+estimator ``E[(rho - 1) - log rho]`` (>= 0; a few thousandths is a gentle step, well above ``clip / 10``
+the clip is doing all the work); ``clip_fraction`` — the share of samples whose ratio left
+``[1 - clip, 1 + clip]`` (0.0-0.2 is usual; near 1 the update has run off); both means over the minibatches;
+``explained_variance`` — ``1 - Var(returns - V) / Var(returns)`` of the critic's values at collection,
+once per rollout (1: the critic predicts the returns; 0: no better than their mean; negative: worse)."""
+HEALTH = UPDATE_STATS[3:]  # PPO's health, after the losses
 
 
 def gae(rewards: torch.Tensor, values: torch.Tensor, next_value: torch.Tensor, gamma: float, lam: float,
@@ -152,6 +164,16 @@ def sample(logits: torch.Tensor, generator: torch.Generator):
     return a, logp
 
 
+def explained_variance(values: torch.Tensor, returns: torch.Tensor, mask: torch.Tensor | None = None) -> float:
+    """``1 - Var(returns - values) / Var(returns)`` over the masked entries (NaN when the returns do not vary)."""
+    if mask is not None:
+        values, returns = values[mask], returns[mask]
+    var = returns.double().var(correction=0)
+    if returns.numel() == 0 or not var > 0:
+        return float("nan")
+    return float(1 - (returns - values).double().var(correction=0) / var)
+
+
 class NonFiniteError(ValueError):
     """A PPO update met a non-finite loss or gradient; raised before the optimizer steps."""
 
@@ -159,7 +181,7 @@ class NonFiniteError(ValueError):
 def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, cfg: PPOConfig,
                value_norm: ValueNorm, generator: torch.Generator, epochs: int | None = None,
                distribution=None) -> dict[str, float]:
-    """Run PPO on one level's rollout; returns mean ``policy_loss``, ``value_loss``, ``entropy``.
+    """Run PPO on one level's rollout; returns :data:`UPDATE_STATS` (the losses and PPO's health).
 
     ``data`` (T, B, ...) must hold ``actions``, ``logp``, ``values`` (normalised critic
     outputs at collection), ``returns`` (raw), ``advantages`` and ``mask`` (alive agents).
@@ -167,14 +189,17 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
     ``distribution(out, actions) -> (log-probabilities, entropies)`` replaces the categorical over
     ``logits`` (the drone executor's Gaussian, :func:`masp_lite.algos.drone_trainer.gaussian`).
     Advantages are standardised over the alive agents of the whole rollout. ``epochs``
-    overrides ``cfg.ppo_epochs``.
+    overrides ``cfg.ppo_epochs``. The health statistics are computed without gradients from tensors
+    the update computes anyway, and draw no random number: they change nothing in training.
     """
     mask_all = data["mask"]
     adv = data["advantages"]
     m = adv[mask_all]
+    with torch.no_grad():  # the critic's values at collection are the returns minus the (raw) advantages
+        ev = explained_variance(data["returns"] - adv, data["returns"], mask_all)
     data = dict(data, advantages=(adv - m.mean()) / (m.std() + 1e-8) if m.numel() > 1 else adv,
                 targets=value_norm.normalize(data["returns"]))
-    stats = {"policy_loss": 0.0, "value_loss": 0.0, "entropy": 0.0}
+    stats = dict.fromkeys(UPDATE_STATS[:5], 0.0)
     n = 0
     for _ in range(cfg.ppo_epochs if epochs is None else epochs):
         for mb in RolloutStorage.minibatches(data, cfg.num_minibatches, generator):
@@ -199,8 +224,18 @@ def ppo_update(data, evaluate, actor: nn.Module, critic: nn.Module, optimizer, c
                 if not torch.isfinite(norm):
                     raise NonFiniteError(f"the {name}'s gradient norm is {norm.item()}")
             optimizer.step()
-            stats["policy_loss"] += pl.item()
-            stats["value_loss"] += vl.item()
-            stats["entropy"] += entropy.item()
+            kl, clipped = _health(logp, mb["logp"], cfg.clip, mb["mask"])
+            for k, x in zip(UPDATE_STATS, (pl.item(), vl.item(), entropy.item(), kl, clipped)):
+                stats[k] += x
             n += 1
-    return {k: v / max(n, 1) for k, v in stats.items()}
+    return {**{k: v / max(n, 1) for k, v in stats.items()}, "explained_variance": ev}
+
+
+@torch.no_grad()
+def _health(logp: torch.Tensor, old_logp: torch.Tensor, clip: float, mask) -> tuple[float, float]:
+    """``(approximate KL, clip fraction)`` of one minibatch (:data:`UPDATE_STATS`), from its log-probabilities."""
+    log_ratio = logp - old_logp
+    ratio = log_ratio.exp()
+    kl = _mean((ratio - 1) - log_ratio, mask)
+    clipped = _mean(((ratio - 1).abs() > clip).to(logp.dtype), mask)
+    return kl.item(), clipped.item()

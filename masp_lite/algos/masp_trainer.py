@@ -47,7 +47,7 @@ from ..config import TrainConfig
 from ..envs import make
 from ..nets.goal_draw import conditional_logits, sequential_sample
 from ..nets.masp import MASPNets
-from .mappo import RolloutStorage, ValueNorm, gae, ppo_update, sample
+from .mappo import UPDATE_STATS, RolloutStorage, ValueNorm, gae, ppo_update, sample
 from .rewards import executor_reward, goal_matcher_reward
 
 __all__ = ["MASPTrainer", "sample", "OBS_KEYS", "terminal_not_done"]
@@ -110,6 +110,7 @@ class MASPTrainer:
         self.generator = torch.Generator().manual_seed(self.seed + 10_007)
         self.iterations = 0
         self.env_steps = 0
+        self.last_row: dict | None = None  # what the last iteration() returned (the live progress shows it)
 
     # ------------------------------------------------------------------ rollout
     @torch.inference_mode()
@@ -119,7 +120,8 @@ class MASPTrainer:
         obs = w.reset()
         gm, cae = RolloutStorage(), RolloutStorage()
         goals = None
-        cov, col = [obs["covered"].all(-1)], []
+        seen = {k: [obs[k]] for k in ("covered", "reached", "alive")}  # what the metrics read, step by step
+        col = []
         B, N = w.num_envs, w.num_agents
         for t in range(T):
             snap = {k: obs[k].clone() for k in self.obs_keys}
@@ -133,17 +135,28 @@ class MASPTrainer:
             r = self.executor_reward(obs, goals, info, alive, t)         # 3. R_CAE after the step
             cae.add(**snap, **{k: x for k, x in inputs._asdict().items() if k not in snap},  # alive: the snap's
                     actions=actions, logp=logp, values=v, rewards=r, mask=alive)
-            cov.append(info["covered"].all(-1))
+            for k, history in seen.items():
+                history.append(info[k])
             col.append(info["collisions"])
         self.env_steps += T * B
-        solved = torch.stack(cov, 1)
-        first = torch.where(solved, torch.arange(T + 1), T).min(1).values
-        stats = {"sr": float(obs["covered"].float().mean()), "steps": float(first.float().mean()),
-                 "cr": float(torch.stack(col, 1).float().mean())}
+        stats = self.measure(seen, col)
         cfg = self.cfg
         gm_data = self._advantages(gm.stacked(), self.gm_norm, cfg.ppo.gm_gamma) if self.gm_trained else None
         return gm_data, \
             self._advantages(cae.stacked(), self.cae_norm, cfg.ppo.gamma, update=cfg.run.train_executor), stats
+
+    def measure(self, seen: dict, collisions: list) -> dict[str, float]:
+        """SR, Steps and CR (means) of a rollout's episodes from what every step ``seen`` (``covered``,
+        ``reached``, ``alive`` at reset and after each step) and their ``collisions``: the metrics of
+        :mod:`masp_lite.evaluation.metrics`, the one definition ``evaluate`` measures with (a shrinking
+        team's SR counts the landmarks ever reached). Imported at the first rollout, as the chunked kernels
+        are at the first update: importing the trainer loads no measuring code."""
+        from ..evaluation.metrics import EpisodeLog, collision_rate, steps, success_rate
+        log = EpisodeLog(*(torch.stack(seen[k], 1) for k in ("covered", "reached")),
+                         torch.stack(collisions, 1).long(), torch.stack(seen["alive"], 1),
+                         varying=self.world.scenario.varying, horizon=self.horizon)
+        return {"sr": float(success_rate(log).mean()), "steps": float(steps(log).mean()),
+                "cr": float(collision_rate(log).mean())}
 
     def goal_step(self, t: int, obs: dict, goals, snap: dict, storage: RolloutStorage):
         """The goals (B, N) for step ``t``: every ``global_step`` steps the Goal Matcher samples distinct
@@ -210,7 +223,7 @@ class MASPTrainer:
         gm_data, cae_data, stats = self.collect()
         r_cae = float(cae_data.pop("reward_mean")[cae_data["mask"]].mean())
         n, cfg = self.nets, self.cfg
-        nothing = {"policy_loss": float("nan"), "value_loss": float("nan"), "entropy": float("nan")}
+        nothing = dict.fromkeys(UPDATE_STATS, float("nan"))
         if gm_data is None:  # random or Hungarian goals: no Goal Matcher to train
             r_gm, s_gm = float("nan"), dict(nothing)
         else:
@@ -227,6 +240,7 @@ class MASPTrainer:
                "gm_reward": r_gm, "cae_reward": r_cae}
         row.update({f"gm_{k}": v for k, v in s_gm.items()})
         row.update({f"cae_{k}": v for k, v in s_cae.items()})
+        self.last_row = row
         return row
 
     # ------------------------------------------------------------------ state

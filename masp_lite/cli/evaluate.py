@@ -17,7 +17,7 @@ from pathlib import Path
 
 import torch
 
-from ..envs import OVERRIDES, SCENARIOS
+from ..envs import OVERRIDES, SCENARIOS, Scenario, get_scenario
 from ..evaluation import MAX_ENVS, evaluate, format_table
 from ..files import atomic_write
 from ..parsing import parse_sets
@@ -40,19 +40,19 @@ def override_types() -> dict[str, object]:
     return dict(OVERRIDES)
 
 
-def split_sets(items, method: str, scenario: str | None = None, checkpoint_flag: bool = False) -> tuple[dict, dict]:
+def split_sets(items, method: str, scenario: str | Scenario | None = None) -> tuple[dict, dict]:
     """``KEY=VALUE`` strings -> (scenario overrides, method options); a key that is neither fails.
 
-    The options are those of the method's policy for ``scenario``'s world kind. With ``checkpoint_flag``
-    (``evaluate``, whose ``--checkpoint PATH`` is a checkpoint's one entrance) ``--set checkpoint=`` is refused."""
-    kind = None if scenario is None or scenario not in SCENARIOS else SCENARIOS[scenario].kind
+    The options are those of the method's policy for ``scenario``'s world kind (a preset name or a
+    :class:`~masp_lite.envs.Scenario`; a name that is no preset leaves the kind open, and the command
+    says so when it builds the scenario)."""
+    if isinstance(scenario, Scenario):
+        kind = scenario.kind
+    else:
+        kind = None if scenario is None or scenario not in SCENARIOS else SCENARIOS[scenario].kind
     factory = get_factory(method, kind)
     _, var_kw = method_options(factory)
     options = option_types(factory)
-    if checkpoint_flag:
-        if any(str(item).partition("=")[0].strip() == "checkpoint" for item in items or []):
-            raise ValueError("--set checkpoint: expected --checkpoint PATH (a checkpoint's one entrance)")
-        options.pop("checkpoint", None)
     targets = {"scenario override": override_types(), f"option of method {method!r}": options}
     if var_kw:  # the method checks the names of its **options itself
         targets[f"option of method {method!r}"] = _Any(options)
@@ -175,12 +175,13 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     if args.threads < 1:
         raise ValueError(f"--threads: expected a positive int, got {args.threads}")
-    overrides, options = split_sets(args.set, args.method, args.scenario, checkpoint_flag=True)
+    preset = get_scenario(args.scenario)  # the one lookup of the name; evaluate applies the overrides to it
+    overrides, options = split_sets(args.set, args.method, preset)
     out = check_writable(args.json) if args.json is not None else None
     torch.set_num_threads(args.threads)
     if out is not None:
         check_replaceable(out, args.checkpoint)
-    record = evaluate(args.method, args.scenario, episodes=args.episodes, seeds=args.seeds,
+    record = evaluate(args.method, preset, episodes=args.episodes, seeds=args.seeds,
                       overrides=overrides, method_options=options, checkpoint=args.checkpoint,
                       device=args.device, num_envs=args.num_envs, progress=True)
     print(format_table([record], fmt=args.format))

@@ -28,6 +28,7 @@ import sys
 
 import torch
 
+from ..envs import get_scenario
 from ..envs.checks import check_seed
 from ..recipes import get_recipe, recipe_names, run_recipe
 from ..threads import TRAIN_THREADS
@@ -132,13 +133,14 @@ def run(args) -> int:
         raise ValueError("train --stage: expected --recipe NAME as well (a stage belongs to a recipe)")
     if args.scenario is None:
         raise ValueError("train: expected --scenario SCENARIO (or --recipe NAME)")
-    args.method, cfg, overrides = method_config(args.method, args.sets, args.scenario)
+    preset = get_scenario(args.scenario)  # the one lookup of the name; train applies the overrides to it
+    args.method, cfg, overrides = method_config(args.method, args.sets, preset)
     torch.set_num_threads(args.threads)
     out = args.out or f"runs/{args.method}-{args.scenario}-seed{args.seed}"
     command = "python -m masp_lite train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "train" else None
     try:
-        m = train(args.scenario, cfg, out, seed=args.seed, resume=args.resume, init=args.init,
+        m = train(preset, cfg, out, seed=args.seed, resume=args.resume, init=args.init,
                   overrides=overrides, progress=not args.quiet, command=command, method=args.method)
     except KeyboardInterrupt:  # Ctrl-C: no traceback; say where the run stands and how to go on
         print(f"\n{_interrupted(args, out, cfg)}", file=sys.stderr)

@@ -37,7 +37,7 @@ import typing
 from dataclasses import dataclass
 
 __all__ = ["Scenario", "SCENARIOS", "OVERRIDES", "get_scenario", "scenario_names", "PAPER_WORLD", "MPE2_WORLD",
-           "world_name"]
+           "world_name", "STARTS_FROM"]
 
 
 @dataclass(frozen=True)
@@ -140,6 +140,10 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in [
     _drone("drone-20", 20, 256.0, 500),
     _drone("drone-20to10", 20, 256.0, 500, team_after=10),
 ]}
+
+#: The preset each team-change preset starts from: the same task until its team shrinks (``mpe-20to10`` is
+#: ``mpe-20`` until step 15). Its size-invariant networks are that preset's (the paper's zero-shot protocol).
+STARTS_FROM = {"mpe-20to10": "mpe-20", "mpe-50to20": "mpe-50", "drone-20to10": "drone-20"}
 
 #: Update orders of the particle world (:attr:`Scenario.integration`).
 INTEGRATIONS = ("mpe2", "velocity_first")

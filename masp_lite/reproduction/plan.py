@@ -40,10 +40,10 @@ import torch
 from ..config import TrainConfig
 from ..envs import get_scenario
 from ..evaluation import evaluate
-from ..files import read_bounded
+from ..files import atomic_write, read_bounded, sha256
 from ..recipes import RECIPES, Recipe, stage_config
 from ..training import train
-from ..weights import atomic_write_bytes, base_scenario, sha256, trained_preset
+from ..weights import base_scenario, trained_preset
 from .reproduce import load_records
 from .shipping import ship_run
 
@@ -198,7 +198,7 @@ def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
 
 def save_plan(runs, path) -> None:
     """Write a plan as JSON (a list of runs), the form ``reproduce --train --plan FILE`` reads."""
-    atomic_write_bytes(path, (json.dumps([asdict(r) for r in runs], indent=1) + "\n").encode())
+    atomic_write(path, (json.dumps([asdict(r) for r in runs], indent=1) + "\n").encode())
 
 
 def load_plan(path) -> list[Run]:
@@ -315,12 +315,12 @@ def _remake(root: Path, rel: str, weights: Path, shipped: bool) -> None:
     opts = dict(rec.get("method_options", {}))
     new = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
                    overrides=rec.get("overrides"), num_envs=rec.get("num_envs"),
-                   method_options={**opts, "checkpoint": str(weights)})
+                   method_options={k: v for k, v in opts.items() if k != "checkpoint"}, checkpoint=weights)
     if shipped:
         new.pop("method_options")
     else:
         new["method_options"] = opts  # the checkpoint as the record names it, relative to the root
-    atomic_write_bytes(root / rel, (json.dumps(new, indent=2) + "\n").encode())
+    atomic_write(root / rel, (json.dumps(new, indent=2) + "\n").encode())
 
 
 def _run_task(task, root: str, say=print) -> list[str]:
@@ -343,7 +343,7 @@ def _run_task(task, root: str, say=print) -> list[str]:
             say(f"{run.name}: evaluating {rel}")
             _remake(root, rel, weights, run.shipped)
         marker.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(marker, json.dumps({"weights_sha256": sha256(weights)}).encode())
+        atomic_write(marker, json.dumps({"weights_sha256": sha256(weights)}).encode())
         done.append(run.name)
     return done
 

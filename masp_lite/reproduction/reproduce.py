@@ -11,7 +11,8 @@ Records come from ``results/`` of a source checkout (:func:`load_records`), or f
 shipped weights, or ``--quick``: a few episodes per seed). A table takes only records made
 in its presets' world definition (:attr:`masp_lite.envs.Scenario.world`) and says which
 world that is, so numbers from two worlds are never mixed in one table. Methods of the
-paper that are not built yet (the RL baselines) show "—" in our rows.
+paper without a record in a cell (a method not evaluated there, or whose weights this checkout
+lacks) show "—" in our rows.
 
 A learned method's cell is the mean over its training seeds when records of several are
 there (the shipped weights and ``results/training/BASE-seedK.pt``, see :func:`pick`); a
@@ -196,12 +197,13 @@ def re_evaluate(rec: dict) -> dict:
     Returns the new record, whose ``overrides`` are the record's own (the world definition is
     passed only to rebuild the world it was made in)."""
     options = dict(rec.get("method_options", {}))
+    checkpoint = options.pop("checkpoint", None)  # a record keeps it among the options; evaluate takes it apart
     threads = torch.get_num_threads()
     torch.set_num_threads(rec.get("threads", threads))  # a float sum's rounding depends on it
     try:
         new = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
                        overrides={**rec["world"], **rec.get("overrides", {})}, method_options=options,
-                       num_envs=rec.get("num_envs"))
+                       checkpoint=checkpoint, num_envs=rec.get("num_envs"))
     finally:
         torch.set_num_threads(threads)
     new.pop("overrides", None)
@@ -791,15 +793,16 @@ def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:
         runs = []
         for _, method, kept in columns:
             found = sorted((RESULTS_DIR / "training" / kept).glob("mpe-20-seed*.pt")) if kept else [None]
-            runs += [(method, {} if k is None else {"checkpoint": f"results/training/{kept}{k.name}"}) for k in found]
+            runs += [(method, None if k is None else f"results/training/{kept}{k.name}") for k in found]
         scenarios = _FIXED + _VARYING if table == "faithful" else ("mpe-20",)
         jobs = []
         for sc in scenarios:
-            for m, opts in runs:
-                if opts and get_scenario(sc).num_agents < 20:  # kept mpe-20 weights fly 20 agents or more
+            for m, checkpoint in runs:
+                if checkpoint and get_scenario(sc).num_agents < 20:  # kept mpe-20 weights fly 20 agents or more
                     continue
-                zero_shot = bool(opts) and base_scenario(sc) != "mpe-20"
-                jobs.append((m, sc, {"method_options": {**opts, **({"any_scenario": True} if zero_shot else {})}}))
+                zero_shot = bool(checkpoint) and base_scenario(sc) != "mpe-20"
+                jobs.append((m, sc, {**({"checkpoint": checkpoint} if checkpoint else {}),
+                                     "method_options": {"any_scenario": True} if zero_shot else {}}))
         return jobs
     if table == "per-step-time":
         return [(m, "mpe-50", {"num_envs": 1}) for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
@@ -819,7 +822,7 @@ def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:
                 runs.append((m, sc, {"method_options": {}}))
                 continue
             for k in sorted((RESULTS_DIR / "training" / kept).glob(f"{base_scenario(sc)}-seed*.pt")):
-                runs.append((m, sc, {"method_options": {"checkpoint": f"results/training/{kept}{k.name}"}}))
+                runs.append((m, sc, {"checkpoint": f"results/training/{kept}{k.name}"}))
     return runs
 
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..files import read_bounded
-from ..weights import atomic_write_bytes, file_bytes, read_weights, sha256, trained_world
+from ..files import atomic_write, read_bounded, sha256
+from ..weights import read_weights, trained_world, weights_bytes
 
 __all__ = ["ship_run", "ship_zero_shot"]
 
@@ -80,7 +80,7 @@ def _zero_shot_entry(manifest: dict, scenario: str, source: str, note: str) -> d
 
 
 def _write_json(path, obj) -> None:
-    atomic_write_bytes(path, (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode())
+    atomic_write(path, (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode())
 
 
 def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dict | None = None,
@@ -112,14 +112,14 @@ def ship_run(run_dir, history_dir, weights_dir=None, earlier=(), evaluation: dic
     for k, (scenario, info, curves) in enumerate(runs, start=1):
         target = f"{stem}.stage{k}.progress.csv" if k < len(runs) else f"{stem}.progress.csv"
         if curves is not None:
-            atomic_write_bytes(history_dir / target, curves)
+            atomic_write(history_dir / target, curves)
         stages.append({"scenario": scenario, "training": info, "progress": target})
-    data = file_bytes(run_dir / "weights.pt")  # as read_weights checked it
+    data = weights_bytes(run_dir / "weights.pt")  # as read_weights checked it
     if weights_dir is None:
         file, target = f"{stem}.pt", history_dir / f"{stem}.pt"
     else:
         file, target = f"{name}.pt", Path(weights_dir) / f"{name}.pt"
-    atomic_write_bytes(target, data)
+    atomic_write(target, data)
     digest = sha256(target)
     history = {"scenario": name, "world": trained_world(rec), "seed": seed, "file": file, "sha256": digest,
                "arch": rec["arch"],

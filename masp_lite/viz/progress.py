@@ -2,9 +2,12 @@
 
 A training run (:func:`masp_lite.training.train`) writes one ``progress.csv`` row per
 iteration: environment steps, wall-clock, the training episodes' SR / Steps / CR (sampled
-actions), both levels' mean rewards, losses and entropies, and — every ``eval_every``
+actions), both levels' mean rewards, losses and entropies, — every ``eval_every``
 iterations — the deterministic evaluation (``eval_sr``, ``eval_steps``, ``eval_cr``; empty
-cells in the other rows). These functions are what chapters 06 and 10 use to look at runs:
+cells in the other rows), and PPO's health per level (``gm_approx_kl``, ``gm_clip_fraction``,
+``gm_explained_variance``, the same with ``cae_``: :data:`~masp_lite.algos.mappo.UPDATE_STATS`;
+files written before 2026-12 have none of these columns). These functions are what chapters
+05, 06 and 10 use to look at runs:
 
 * :func:`read_progress` — the file as columns of floats (NaN where a cell is empty);
 * :func:`last_evaluation` — the last row that has an evaluation;
@@ -12,9 +15,12 @@ cells in the other rows). These functions are what chapters 06 and 10 use to loo
 * :func:`plot_history` — every stage of a kept training history, end to end (chapter 06);
 * :func:`plot_seed_bands` — the mean and band over seeds of several runs' curves (chapter 10's
   ablation figure).
+* :func:`plot_ppo_health` — both levels' approximate KL, clip fraction and explained variance
+  against environment steps (chapter 05);
 * :class:`ProgressLine` — a training run's progress in a notebook as one line that updates
   in place (``train(..., progress=False, on_iteration=ProgressLine(updates))``): the saved
-  notebook keeps that one line, where a text progress bar saves every redraw.
+  notebook keeps that one line, where a text progress bar saves every redraw; it ends with
+  PPO's health of the last iteration (:func:`health_text`).
 
 Why columns of floats: a curve is plotted and compared as an array, and NaN keeps the
 evaluation columns aligned with the iterations (``np.isnan`` finds the evaluated rows).
@@ -32,9 +38,32 @@ from pathlib import Path
 
 import numpy as np
 
+from ..algos.mappo import HEALTH
 from ..files import read_bounded
 
-__all__ = ["read_progress", "last_evaluation", "plot_progress", "plot_history", "plot_seed_bands", "ProgressLine"]
+__all__ = ["read_progress", "last_evaluation", "plot_progress", "plot_history", "plot_seed_bands", "plot_ppo_health",
+           "health_text", "ProgressLine", "LEVELS", "HEALTH_NAMES"]
+
+#: The two levels PPO trains, by their column prefix in ``progress.csv``.
+LEVELS = {"gm": "Goal Matcher", "cae": "executor"}
+#: PPO's health per level (``progress.csv``: ``gm_approx_kl``, ...; :data:`~masp_lite.algos.mappo.HEALTH`) in words.
+HEALTH_NAMES = dict(zip(HEALTH, ("approximate KL", "clip fraction", "explained variance")))
+
+
+def health_text(row: dict | None) -> str:
+    """PPO's health in one line: ``"PPO KL 0.0040/0.0120, clipped 2%/9%, EV 0.31/0.78 (Goal Matcher/executor)"``.
+
+    ``row``: an iteration's row (``MASPTrainer.iteration()``'s, or ``progress.csv``'s). A level that was not
+    trained (NaN), or a row without these columns (an older run), shows ``-``; no row at all is ``""``."""
+    if not row:
+        return ""
+
+    def both(key: str, fmt: str) -> str:
+        values = [row.get(f"{level}_{key}") for level in LEVELS]
+        return "/".join(format(float(v), fmt) if v not in (None, "") and float(v) == float(v) else "-"
+                        for v in values)
+    return (f"PPO KL {both('approx_kl', '.4f')}, clipped {both('clip_fraction', '.0%')}, "
+            f"EV {both('explained_variance', '.2f')} ({'/'.join(LEVELS.values())})")
 
 
 class ProgressLine:
@@ -71,6 +100,8 @@ class ProgressLine:
     def __call__(self, trainer) -> None:
         iterations = int(trainer.iterations)
         line = self.text(iterations, getattr(trainer, "env_steps", None))
+        health = health_text(getattr(trainer, "last_row", None))
+        line += f" | {health}" if health else ""
         now = time.monotonic()
         if self.shown is not None and now - self.shown < self.every and iterations < self.total:
             return
@@ -279,3 +310,35 @@ def plot_seed_bands(groups: dict, key: str = "train_sr", smooth: int = 5, ax=Non
     ax.xaxis.set_major_formatter(EngFormatter(sep=""))
     ax.legend(fontsize=8)
     return ax
+
+
+def plot_ppo_health(columns: dict, title: str = "", smooth: int = 1):
+    """Both levels' PPO health against environment steps, one panel per statistic; returns the figure.
+
+    Approximate KL (how far each update moved the policy from the one that collected the rollout),
+    clip fraction (the share of samples whose probability ratio the clip stopped) and explained
+    variance of the critic (1: it predicts the returns; 0: no better than their mean). ``columns``:
+    :func:`read_progress` of a run; ``smooth``: a running mean over that many iterations. A run
+    written before these columns existed is one clear error."""
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import EngFormatter, MaxNLocator
+
+    missing = [f"{level}_{k}" for level in LEVELS for k in HEALTH_NAMES if f"{level}_{k}" not in columns]
+    if missing:
+        raise ValueError(f"plot_ppo_health: the run has no columns {missing} (written before PPO's health was "
+                         "logged, 2026-12); expected the progress.csv of a newer run")
+    kernel = np.ones(max(1, smooth)) / max(1, smooth)
+    x = columns["env_steps"][len(kernel) - 1:]
+    fig, axes = plt.subplots(1, len(HEALTH_NAMES), figsize=(13, 3.2))
+    for ax, (key, label) in zip(axes, HEALTH_NAMES.items()):
+        for level, name in LEVELS.items():
+            y = columns[f"{level}_{key}"]
+            if not np.isnan(y).all():  # a level that was not trained (frozen, or scripted goals) has none
+                ax.plot(x, np.convolve(y, kernel, mode="valid"), label=name)
+        ax.set(title=label, xlabel="environment steps")
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=4, integer=True))
+        ax.xaxis.set_major_formatter(EngFormatter(sep=""))
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig

@@ -34,8 +34,6 @@ for it. A scenario's own entry comes before the one of the preset it starts from
 """
 from __future__ import annotations
 
-import functools
-import hashlib
 import io
 import json
 import re
@@ -45,23 +43,23 @@ from pathlib import Path
 
 import torch
 
-from ..envs.scenarios import MPE2_WORLD, get_scenario, world_name
-from ..files import atomic_write, read_bounded
+from ..envs.scenarios import MPE2_WORLD, STARTS_FROM, get_scenario, world_name
+from ..files import atomic_write, file_bytes, read_bounded, sha256
 from ..nets.masp import MASPNets
 
 __all__ = ["FORMAT", "HERE", "MANIFEST", "METHODS_DIR", "save_weights", "load_weights", "read_weights",
            "read_manifest", "trained_world", "method_checkpoint",
-           "default_checkpoint", "base_scenario", "shipped_entry", "trained_preset", "sha256", "atomic_write_bytes"]
+           "default_checkpoint", "base_scenario", "shipped_entry", "trained_preset", "weights_bytes"]
 
 FORMAT = "masp-lite/masp-weights/1"
 HERE = Path(__file__).resolve().parent
 MANIFEST = HERE / "manifest.json"
 #: The packaged seed-0 weights of the learned methods other than the shipped MASP (``METHOD/PRESET.pt``).
 METHODS_DIR = HERE / "methods"
-_BASE = {"mpe-20to10": "mpe-20", "mpe-50to20": "mpe-50", "drone-20to10": "drone-20"}
 _ZIP_MAGIC, _PICKLE_MAGIC = b"PK", b"\x80"  # torch.save's zip archive; its legacy pickle format
 #: The largest weights file read (the shipped ones are about 0.2 MB): checked before anything is loaded.
 MAX_WEIGHTS_BYTES = 64 * 2**20
+_READ = (MAX_WEIGHTS_BYTES, "weights file")  # how a weights file is read (files.file_bytes, files.sha256)
 #: The largest value of each architecture setting a weights file may declare, checked before any network
 #: is built (the shipped networks: width 32, one GCN layer, groups of 3): larger ones would take gigabytes.
 ARCH_BOUNDS = {"width": 1024, "group_size": 64, "gcn_layers": 16, "obstacles_seen": 64, "global_step": 1000,
@@ -74,7 +72,7 @@ _ANYWAY = "to use them anyway: --set any_scenario=true on the command line, any_
 def base_scenario(scenario) -> str:
     """The preset whose weights a scenario uses: its own name, or the N1 preset of a team change."""
     name = scenario if isinstance(scenario, str) else scenario.name
-    return _BASE.get(name, name)
+    return STARTS_FROM.get(name, name)
 
 
 def shipped_entry(scenario) -> dict | None:
@@ -91,30 +89,10 @@ def trained_preset(scenario) -> str:
     return (shipped_entry(scenario) or {}).get("trained_on", base_scenario(scenario))
 
 
-@functools.lru_cache(maxsize=64)
-def _read(path: str, stamp: tuple) -> bytes:
-    return read_bounded(path, MAX_WEIGHTS_BYTES, "weights file")
-
-
-def file_bytes(path) -> bytes:
-    """A file's bytes, read from disk once while it is unchanged (its hash, its check and its load share them).
-
-    Unchanged means the same inode, size, modification and change time: a copy that keeps the
-    modification time (``cp -p``) still changes the change time, which no user can set back.
-    Only a regular file of at most :data:`MAX_WEIGHTS_BYTES` is read (:func:`masp_lite.files.read_bounded`)."""
-    try:
-        st = Path(path).stat()
-    except OSError:
-        return read_bounded(path, MAX_WEIGHTS_BYTES, "weights file")  # its one clear error
-    return _read(str(Path(path).resolve()), (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns))
-
-
-def sha256(path) -> str:
-    return hashlib.sha256(file_bytes(path)).hexdigest()
-
-
-#: The one atomic write (:func:`masp_lite.files.atomic_write`), under the name its callers here import.
-atomic_write_bytes = atomic_write
+def weights_bytes(path) -> bytes:
+    """A weights file's bytes (at most :data:`MAX_WEIGHTS_BYTES`), read once while it is unchanged
+    (:func:`masp_lite.files.file_bytes`): its hash, its check and its load share them."""
+    return file_bytes(path, *_READ)
 
 
 def save_weights(path, nets, scenario) -> None:
@@ -126,7 +104,7 @@ def save_weights(path, nets, scenario) -> None:
     torch.save({"format": FORMAT, "scenario": base_scenario(scenario), "world": _world(scenario),
                 "arch": dict(nets.arch),
                 "state_dict": {k: v.detach().cpu().clone() for k, v in nets.state_dict().items()}}, buf)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_write(path, buf.getvalue())
 
 
 def _world(scenario) -> dict:
@@ -198,13 +176,13 @@ def read_weights(path) -> dict:
     packaged = {HERE / v["file"]: v for v in read_manifest().values()}
     packaged.update({METHODS_DIR / v["file"]: v for m in _methods_manifest().values() for v in m.values()})
     entry = packaged.get(path.resolve())
-    if entry is not None and sha256(path) != entry["sha256"]:
+    if entry is not None and sha256(path, *_READ) != entry["sha256"]:
         raise ValueError(f"checkpoint {str(path)!r}: contents differ from manifest.json (corrupt or replaced)")
     run = _run_manifest(path)
-    if run is not None and sha256(path) != run["weights_sha256"]:
+    if run is not None and sha256(path, *_READ) != run["weights_sha256"]:
         raise ValueError(f"checkpoint {str(path)!r}: contents differ from the SHA-256 its run recorded in "
                          f"{str(path.parent / 'manifest.json')!r} (corrupt or replaced)")
-    data = file_bytes(path)
+    data = weights_bytes(path)
     head = data[:4]
     if not head:
         raise ValueError(f"checkpoint {str(path)!r}: the file is empty; expected a MASP weights file")
