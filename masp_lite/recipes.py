@@ -132,7 +132,7 @@ MASP = Recipe("masp", "masp", (
     Stage("mpe-5-scratch", "mpe-5", 1500, 64, {**FROM_SCRATCH, "num_obstacles": 10, "eval_every": 100,
                                               "eval_episodes": 128, "checkpoint_every": 10}),
     # both levels, quieter, more worlds for the short episodes: the shipped mpe-5
-    Stage("mpe-5", "mpe-5", 3200, 128, {**_SQUARED_FINE_TUNE, "collision_coef": 2.0, "num_obstacles": 10,
+    Stage("mpe-5", "mpe-5", 4800, 128, {**_SQUARED_FINE_TUNE, "collision_coef": 2.0, "num_obstacles": 10,
                                         "eval_every": 200, "eval_episodes": 128, "checkpoint_every": 10},
           "mpe-5-scratch", keep="mpe-5"),
     # mpe-50: the Goal Matcher only, at N = 50, from the shipped mpe-20 (its executor drives unchanged)
