@@ -408,12 +408,12 @@ class _Run:
     command: str
     """The run's first command (a resume keeps it)."""
     last_command: str
-    """This session's command."""
+    """The command that started this part of the run (the last resume's, or the first)."""
     init: str | Path | None = None
     """The weights the run started from (``--init``)."""
     started: str = field(default_factory=lambda: datetime.now(timezone.utc).isoformat(timespec="seconds"))
     wall_before: float = 0.0
-    """Wall-clock seconds of the run's earlier sessions (before a resume)."""
+    """Wall-clock seconds the run took before this resume."""
     rows: list = field(default_factory=list)
     """``progress.csv``'s rows so far."""
     t0: float = field(default_factory=time.perf_counter)

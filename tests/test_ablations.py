@@ -82,7 +82,7 @@ def test_each_method_takes_only_its_own_weights(tmp_path):
     with pytest.raises(ValueError, match="built for 5 agents .* evaluate it at N = 5 only"):
         make_policy("gm-mlp", make("mpe-20", num_envs=1, seed=0), checkpoint=str(paths["gm-mlp"]),
                     any_scenario=True)
-    rec = evaluate("cae-mlp", "mpe-5", episodes=2, seeds=[0], method_options={"checkpoint": str(paths["cae-mlp"])})
+    rec = evaluate("cae-mlp", "mpe-5", episodes=2, seeds=[0], checkpoint=paths["cae-mlp"])
     assert rec["method"] == "cae-mlp" and 0.0 <= rec["sr"]["mean"] <= 1.0
 
 
