@@ -76,7 +76,8 @@ class ContactNets(DroneNets):
     def cae_inputs(self, obs: dict, goals: torch.Tensor, perm: torch.Tensor):
         inputs = super().cae_inputs(obs, goals, perm)
         extra = contact_features(obs["agent_pos"], obs["agent_vel"], DRONE_SPEED)
-        return inputs._replace(pair=torch.cat([inputs.pair, extra], dim=-1))
+        pair, *rest = inputs  # a NamedTuple: the same fields with the contact features appended to the pair's
+        return type(inputs)(torch.cat([pair, extra], dim=-1), *rest)
 
 
 class ContactTrainer(DroneMASPTrainer):
