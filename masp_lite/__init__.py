@@ -5,7 +5,7 @@ Matcher and reaches them with a Coordinated Action Executor built on Group Infor
 Fusion, both trained with MAPPO. See ``notebooks/`` for the course.
 
 Reading path — MASP itself, in the order of the paper's method section (12 files, about
-2,083 lines; each reads in one sitting):
+2,069 lines; each reads in one sitting):
 
 =====  ==========================  =====  ================================================
 step   file                        lines  what it holds
@@ -13,8 +13,8 @@ step   file                        lines  what it holds
 1      ``envs/particle.py``          308  the task: MPE's world, batched over episodes
 2      ``evaluation/metrics.py``     109  SR, Steps, CR, as the paper defines them
 3      ``algos/assignment.py``       158  the Hungarian assignment (R_GM's reference)
-4      ``nets/encoders.py``          177  Self-Encoder and Cross-Encoder (eqs. 2-4)
-5      ``nets/fusion.py``            143  Group Information Fusion: groups of 3, a GCN each
+4      ``nets/encoders.py``          157  Self-Encoder and Cross-Encoder (eqs. 2-4)
+5      ``nets/fusion.py``            149  Group Information Fusion: groups of 3, a GCN each
 6      ``nets/masp.py``              302  Goal Matcher, Coordinated Action Executor, critics
 7      ``nets/goal_draw.py``          85  matching scores -> distinct goals, in training
 8      ``nets/decoding.py``           84  matching scores -> distinct goals, when acting
