@@ -17,8 +17,9 @@ Past the paper's scale one world alone is too big for the cache (1000 agents: ab
 500,000 groups, 1.5 million pair rows), so the forwards of :class:`ScoreHead` and :class:`OneLayerFusion`
 cut such a world into slices of agents (:func:`_chunks`). Every row is computed by the same operations
 either way, so the numbers are the same, bit for bit (tested; the records at N <= 200 re-evaluate
-unchanged). Measured on one loaded core, one world, the fusion and the Goal Matcher's scores together:
-N = 200 52 -> 31 ms, N = 500 103 -> 46 ms, N = 1000 514 -> 141 ms (research log, 2026-12-07).
+unchanged). Measured in CPU time on one core of a loaded machine, one world of the shipped networks, the fusion
+and the Goal Matcher's scores together, whole world -> slices: N = 200 30 -> 18 ms, N = 500 48 -> 33 ms,
+N = 1000 357 -> 113 ms (research log, 2026-12-07).
 
 A network part calls its kernel when its ``kernel`` flag is on (the default; a constructor argument) and
 its inputs need no gradient (they are observations); :func:`use_kernels`
