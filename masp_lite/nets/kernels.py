@@ -45,6 +45,7 @@ FUSION_ROWS = 20_000
 POOL_ROWS = 20_000
 """(agent, other) rows :class:`PoolKernel` processes at a time."""
 
+
 def use_kernels(module: torch.nn.Module, on: bool = True) -> torch.nn.Module:
     """Turn the kernels on or off in every part of ``module`` that has one (its ``kernel`` flag, which each
     part's constructor sets, on by default), as ``module.train(mode)`` sets ``training``; returns ``module``.
@@ -84,8 +85,8 @@ class ScoreHead(torch.autograd.Function):
         step = max(1, SCORE_ROWS // max(N * M, 1))
         out = []
         for s, a in _chunks(B, N, step, M, SCORE_ROWS):
-            w = slice(s, s + step)
-            out.append((ScoreHead._hidden(hq[w, a], hk[w], dist[w, a], wd) @ w2[0]) + b2)
+            worlds = slice(s, s + step)
+            out.append((ScoreHead._hidden(hq[worlds, a], hk[worlds], dist[worlds, a], wd) @ w2[0]) + b2)
         ctx.save_for_backward(hq, hk, dist, wd, w2)
         ctx.step = step
         return _join(out, B, step)
