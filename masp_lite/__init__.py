@@ -5,7 +5,7 @@ Matcher and reaches them with a Coordinated Action Executor built on Group Infor
 Fusion, both trained with MAPPO. See ``notebooks/`` for the course.
 
 Reading path — MASP itself, in the order of the paper's method section (13 files, about
-2,137 lines; each reads in one sitting):
+2,183 lines; each reads in one sitting):
 
 =====  ==========================  =====  ================================================
 step   file                        lines  what it holds
@@ -13,16 +13,16 @@ step   file                        lines  what it holds
 1      ``envs/particle.py``          313  the task: MPE's world, batched over episodes
 2      ``evaluation/metrics.py``     109  SR, Steps, CR, as the paper defines them
 3      ``algos/assignment.py``       158  the Hungarian assignment (R_GM's reference)
-4      ``nets/encoders.py``          177  Self-Encoder and Cross-Encoder (eqs. 2-4)
-5      ``nets/fusion.py``            143  Group Information Fusion: groups of 3, a GCN each
+4      ``nets/encoders.py``          157  Self-Encoder and Cross-Encoder (eqs. 2-4)
+5      ``nets/fusion.py``            149  Group Information Fusion: groups of 3, a GCN each
 6a     ``nets/features.py``          120  what the networks see of a world (both worlds)
 6b     ``nets/masp.py``              236  Goal Matcher, executor, critics (both worlds)
 7      ``nets/goal_draw.py``          85  matching scores -> distinct goals, in training
 8      ``nets/decoding.py``           84  matching scores -> distinct goals, when acting
 9      ``algos/rewards.py``           97  R_GM (eq. 1) and R_CAE (eq. 5)
-10     ``algos/mappo.py``            240  MAPPO: GAE, clipped surrogate, value normalisation
-11     ``algos/masp_trainer.py``     264  one rollout loop and both levels' PPO updates
-12     ``policies/masp.py``          176  the trained networks acting in a world
+10     ``algos/mappo.py``            241  MAPPO: GAE, clipped surrogate, value normalisation
+11     ``algos/masp_trainer.py``     263  one rollout loop and both levels' PPO updates
+12     ``policies/masp.py``          171  the trained networks acting in a world
 =====  ==========================  =====  ================================================
 
 Beside the path, not inside it: the ablations' and baselines' parts (``nets/variants.py``,

@@ -297,7 +297,7 @@ def test_one_layer_fusion_reads_the_nodes_a_gather_reads():
 def test_pool_kernel_matches_autograd_in_value_and_gradients(executor, dead, monkeypatch):
     """The chunked pooling kernel of mappo/darl1n (hand-written backward) against plain autograd."""
     from masp_lite.nets import baselines, kernels
-    from masp_lite.nets.encoders import plain_autograd
+    from masp_lite.nets.kernels import use_kernels
     monkeypatch.setattr(kernels, "POOL_ROWS", 30)  # several chunks even for these small worlds
     torch.manual_seed(4)
     agents = 6
@@ -311,9 +311,8 @@ def test_pool_kernel_matches_autograd_in_value_and_gradients(executor, dead, mon
     g = torch.randn(3, agents, 5, dtype=torch.float64)
     fast = view(pair, None, alive)
     mine = torch.autograd.grad(fast, list(view.parameters()), g, allow_unused=True)
-    with plain_autograd():
-        plain = view(pair, None, alive)
-        theirs = torch.autograd.grad(plain, list(view.parameters()), g, allow_unused=True)
+    plain = use_kernels(view, False)(pair, None, alive)
+    theirs = torch.autograd.grad(plain, list(view.parameters()), g, allow_unused=True)
     torch.testing.assert_close(fast, plain)
     for a, c in zip(mine, theirs):
         if c is None:  # the score's last bias does not move a softmax: autograd reports no gradient

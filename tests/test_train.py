@@ -318,13 +318,14 @@ def test_weights_remember_their_world_and_refuse_another(tmp_path):
 def test_chunked_kernels_train_like_plain_autograd():
     """One training iteration with the chunked kernels and with plain autograd: same numbers."""
     from masp_lite.algos.masp_trainer import MASPTrainer
-    from masp_lite.nets.encoders import plain_autograd
+    from masp_lite.nets.kernels import use_kernels
     cfg = TrainConfig.from_flat({"num_envs": 4, "ppo_epochs": 2, "gm_ppo_epochs": 2})
     fast = MASPTrainer("mpe-5", cfg, seed=3)
     row_fast = fast.iteration()
-    with plain_autograd():
-        plain = MASPTrainer("mpe-5", cfg, seed=3)
-        row_plain = plain.iteration()
+    plain = MASPTrainer("mpe-5", cfg, seed=3)
+    assert use_kernels(plain.nets, False) is plain.nets and not plain.nets.cae.fusion.kernel
+    assert not plain.nets.gm.cross.kernel and fast.nets.gm.cross.kernel
+    row_plain = plain.iteration()
     for k in ("train_sr", "train_steps", "train_cr", "gm_reward", "cae_reward"):
         assert row_fast[k] == pytest.approx(row_plain[k], rel=1e-4, abs=1e-6), k
     for (name, a), b in zip(fast.nets.state_dict().items(), plain.nets.state_dict().values()):

@@ -10,7 +10,7 @@ commands, ``masp-velocity`` and the RL baselines, :data:`DRONE_METHODS` (MuJoCo 
 iterations are timed with ``time.perf_counter``, with ``--threads`` torch threads.
 
 The reference, measured in the same run: MASP with the chunked kernels off
-(:func:`masp_lite.nets.encoders.plain_autograd`: the Group Information Fusion and the
+(``use_kernels(trainer.nets, False)``, :func:`masp_lite.nets.kernels.use_kernels`: the Group Information Fusion and the
 Cross-Encoder's score head from plain torch ops, differentiated by autograd). The ratio
 "x plain" is what the kernels buy; "x masp" compares each method with MASP. On drone
 worlds the world's step is a fixed share of every row (MuJoCo's physics about a tenth of
@@ -21,14 +21,13 @@ the output prints the load average.
 """
 from __future__ import annotations
 
-import contextlib
 import time
 
 import torch
 
 from ..config import TrainConfig
 from ..envs import get_scenario
-from ..nets.encoders import plain_autograd
+from ..nets.kernels import use_kernels
 from ..policies import learned_methods
 from ..recipes import FROM_SCRATCH
 from ..threads import TRAIN_THREADS
@@ -63,13 +62,13 @@ def throughput(scenario: str, settings: dict, worlds: int = 16, iterations: int 
     from ..algos.masp_trainer import MASPTrainer
     cfg = TrainConfig.from_flat({**FROM_SCRATCH, **settings, "num_envs": worlds})
     drone = get_scenario(scenario).kind == "drone"
-    with plain_autograd() if plain else contextlib.nullcontext():
-        trainer = (DroneMASPTrainer if drone else MASPTrainer)(scenario, cfg, seed=0)
-        trainer.iteration()  # warm-up
-        start, t0 = trainer.env_steps, time.perf_counter()
-        for _ in range(iterations):
-            trainer.iteration()
-        return (trainer.env_steps - start) / (time.perf_counter() - t0)
+    trainer = (DroneMASPTrainer if drone else MASPTrainer)(scenario, cfg, seed=0)
+    use_kernels(trainer.nets, not plain)
+    trainer.iteration()  # warm-up
+    start, t0 = trainer.env_steps, time.perf_counter()
+    for _ in range(iterations):
+        trainer.iteration()
+    return (trainer.env_steps - start) / (time.perf_counter() - t0)
 
 
 def run(args) -> int:

@@ -27,11 +27,12 @@ __all__ = ["evaluate", "check_checkpoint", "MAX_ENVS", "memory_estimate", "check
 
 #: Most episodes run side by side in one batched world during evaluation.
 MAX_ENVS = 100
-#: Bytes per agent pair and world at the peak of an evaluation (pair features, distances, the
-#: networks' activations), measured for ``masp`` on the mpe-50 map: 0.5-0.65 kB at N = 400 and 1000.
-PAIR_BYTES = 1024
-#: The interpreter, torch and one method's networks, before any world.
-BASE_BYTES = 400 * 2 ** 20
+#: Bytes per agent pair and world at the peak of an evaluation (pair features, groups, distances, the
+#: networks' chunked activations), measured for ``masp`` at mpe-50's density: 134-149 at N = 200 to 1000
+#: and 1 to 25 worlds (the planners need less); tested within 25 % at N = 500 and 1000.
+PAIR_BYTES = 144
+#: The interpreter, torch and one method's networks, before any world (measured: 279 MiB).
+BASE_BYTES = 280 * 2 ** 20
 
 
 def memory_estimate(num_agents: int, num_envs: int) -> int:

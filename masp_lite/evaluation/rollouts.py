@@ -38,25 +38,27 @@ def rollout_timings(world, policy, episodes: int, seed: int | None = None, progr
         obs = world.reset(seed=seed if first else None)  # later batches continue the world's RNG
         first = False
         policy.reset(obs)
-        cov, rea, alive, col = [obs["covered"]], [obs["reached"]], [obs["alive"]], []
+        # The episode's log is filled in place: a small tensor kept every step would split the large blocks
+        # that the networks free (hundreds of agents: megabytes per step) and grow the heap by about one per step.
+        cov, rea, alive = (torch.empty(B, T + 1, *obs[k].shape[1:], dtype=torch.bool, device=obs[k].device)
+                           for k in ("covered", "reached", "alive"))
+        col = torch.empty(B, T, dtype=torch.long, device=obs["alive"].device)
+        cov[:, 0], rea[:, 0], alive[:, 0] = obs["covered"], obs["reached"], obs["alive"]
         keep = min(B, episodes - done_eps)
-        for _ in range(T):
+        for t in range(T):
             _sync(device)
             t0 = time.perf_counter()
             actions = policy.act(obs)
             _sync(device)
             timings.append((time.perf_counter() - t0) / B)
             obs, info = world.step(actions)
-            cov.append(info["covered"])
-            rea.append(info["reached"])
-            alive.append(info["alive"])
-            col.append(info["collisions"])
+            cov[:, t + 1], rea[:, t + 1], alive[:, t + 1] = info["covered"], info["reached"], info["alive"]
+            col[:, t] = info["collisions"]
             if on_step is not None:
                 on_step(obs, keep)
             if progress is not None:
                 progress.update(1)
-        stack = lambda xs: torch.stack(xs, dim=1)[:keep].cpu()  # noqa: E731
-        logs.append(EpisodeLog(stack(cov), stack(rea), stack(col).long(), stack(alive),
+        logs.append(EpisodeLog(cov[:keep].cpu(), rea[:keep].cpu(), col[:keep].cpu(), alive[:keep].cpu(),
                                varying=bool(world.scenario.varying), horizon=int(T)))
         done_eps += keep
     return EpisodeLog.cat(logs), np.asarray(timings)

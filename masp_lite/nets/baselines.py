@@ -36,7 +36,7 @@ the order among them is arbitrary but fixed (by index). Every module serves any 
 :class:`AttentionPool` and :class:`RadiusMean` see every pair: at 50 agents a training
 minibatch holds millions of (agent, other) rows. In training both run as
 :class:`masp_lite.nets.kernels.PoolKernel`, a few worlds at a time with a hand-written
-backward; :func:`masp_lite.nets.encoders.plain_autograd` switches it off, and the two paths
+backward; :func:`masp_lite.nets.kernels.use_kernels` switches it off, and the two paths
 agree to float rounding (tested, with ``gradcheck``).
 """
 from __future__ import annotations
@@ -44,7 +44,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from .encoders import chunked, mlp
+from .encoders import mlp
 from .kernels import PoolKernel
 
 __all__ = ["NearestMLP", "AttentionSubgraph", "AttentionPool", "RadiusMean", "nearest_others", "distance_feature",
@@ -148,15 +148,17 @@ class AttentionPool(nn.Module):
 
     Each row gets a score (an MLP) and an embedding; the result is the softmax-weighted sum
     of the embeddings over the rows that exist (zeros when none does). As an executor view
-    (``forward(pair, groups, alive)``) the rows are the other alive agents' pair features."""
+    (``forward(pair, groups, alive)``) the rows are the other alive agents' pair features.
+    ``kernel``: pool with :class:`masp_lite.nets.kernels.PoolKernel` when the rows need no gradient."""
 
-    def __init__(self, in_features: int, width: int = 32):
+    def __init__(self, in_features: int, width: int = 32, kernel: bool = True):
         super().__init__()
+        self.kernel = kernel
         self.score = mlp([in_features, width, 1])
         self.embed = mlp([in_features, width], last_activation=True)
 
     def pool(self, rows: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
-        if chunked() and not rows.requires_grad:
+        if self.kernel and not rows.requires_grad:
             first, out, embed = self.score[0], self.score[2], self.embed[0]
             return PoolKernel.apply(rows, mask, torch.cat([first.weight, embed.weight]),
                                      torch.cat([first.bias, embed.bias]), out.weight, out.bias)
@@ -175,10 +177,12 @@ class AttentionPool(nn.Module):
 
 
 class RadiusMean(nn.Module):
-    """``darl1n``'s executor view: the mean embedding of the alive agents within 1 m (B, N, width)."""
+    """``darl1n``'s executor view: the mean embedding of the alive agents within 1 m (B, N, width).
+    ``kernel``: as :class:`AttentionPool`'s."""
 
-    def __init__(self, in_features: int = 6, width: int = 32):
+    def __init__(self, in_features: int = 6, width: int = 32, kernel: bool = True):
         super().__init__()
+        self.kernel = kernel
         self.embed = mlp([in_features, width], last_activation=True)
 
     def forward(self, pair: torch.Tensor, groups, alive: torch.Tensor) -> torch.Tensor:
@@ -187,7 +191,7 @@ class RadiusMean(nn.Module):
         near = (distance_feature(pair) < 1.0) & alive.unsqueeze(1) & ~torch.eye(N, dtype=torch.bool, device=pair.device)
         w = near.to(pair.dtype)
         w = w / w.sum(2, keepdim=True).clamp(min=1.0)
-        if chunked() and not pair.requires_grad:
+        if self.kernel and not pair.requires_grad:
             embed = self.embed[0]
             return PoolKernel.apply(pair, w, embed.weight, embed.bias, None, None)
         return (self.embed(pair) * w.unsqueeze(-1)).sum(2)

@@ -28,33 +28,12 @@ the equations this module exists to show.
 """
 from __future__ import annotations
 
-import contextlib
 import math
 
 import torch
 from torch import nn
 
-__all__ = ["mlp", "s_inter", "node_update", "SelfEncoder", "CrossEncoder", "masked_softmax", "plain_autograd",
-           "chunked"]
-
-_CHUNKED = [True]
-
-
-def chunked() -> bool:
-    """Whether the chunked kernels (:mod:`masp_lite.nets.kernels`) are on."""
-    return _CHUNKED[0]
-
-
-@contextlib.contextmanager
-def plain_autograd():
-    """Within this block the networks use plain torch ops and autograd instead of the chunked
-    kernels (:mod:`masp_lite.nets.kernels`): the same numbers up to float rounding, what
-    ``bench train`` measures the kernels against."""
-    was, _CHUNKED[0] = _CHUNKED[0], False
-    try:
-        yield
-    finally:
-        _CHUNKED[0] = was
+__all__ = ["mlp", "s_inter", "node_update", "SelfEncoder", "CrossEncoder", "masked_softmax"]
 
 
 def mlp(sizes: list[int], last_activation: bool = False) -> nn.Sequential:
@@ -142,12 +121,13 @@ class CrossEncoder(nn.Module):
     map-normalised units), or (B, N, M, C) with ``C = distance_channels`` distance-derived
     inputs per pair. The score of (k, j) is ``MLP([W_q y_a^k, W_k y_t^j, D_kj])``;
     :meth:`scores` applies the softmax over goals (``S_intra^k``). The logits are what the
-    Goal Matcher's categorical distribution uses. Masked goals get ``-inf``.
+    Goal Matcher's categorical distribution uses. Masked goals get ``-inf``. ``kernel``: distances that need
+    no gradient are scored by :class:`~masp_lite.nets.kernels.ScoreHead` (see ``kernels.use_kernels``).
     """
 
-    def __init__(self, width: int = 32, distance_channels: int = 1):
+    def __init__(self, width: int = 32, distance_channels: int = 1, kernel: bool = True):
         super().__init__()
-        self.width, self.distance_channels = width, distance_channels
+        self.width, self.distance_channels, self.kernel = width, distance_channels, kernel
         self.query = nn.Linear(width, width, bias=False)
         self.key = nn.Linear(width, width, bias=False)
         self.score = mlp([2 * width + distance_channels, width, 1])
@@ -162,7 +142,7 @@ class CrossEncoder(nn.Module):
         hk = self.key(y_t) @ w[:, L:2 * L].T                                # (B, M, L)
         if dist.dim() == 3:
             dist = dist.unsqueeze(-1)
-        if dist.requires_grad or not chunked():  # the plain formula
+        if dist.requires_grad or not self.kernel:  # the plain formula
             logits = rest(hq.unsqueeze(2) + hk.unsqueeze(1) + dist @ w[:, 2 * L:].T + first.bias).squeeze(-1)
         else:  # the same numbers, chunked (eq. 4's hidden layer is never stored whole)
             from .kernels import ScoreHead

@@ -19,8 +19,8 @@ one layer is what the paper's description supports (a second would see identical
 
 Everything is vectorized over worlds, agents and groups. With one layer (the paper's, and
 every shipped network) :class:`masp_lite.nets.kernels.OneLayerFusion` computes the same numbers
-a few worlds at a time so that the training update runs from the CPU cache; the general path
-below serves more layers and gradients into the pair features.
+a few worlds (or, past a few hundred agents, a slice of one world's agents) at a time, from the CPU
+cache; the general path below serves more layers and gradients into the pair features.
 Dropped agents (``alive`` False) are removed from every subgraph (no edges), and a group
 whose other members are all dropped does not count in the mean.
 
@@ -34,7 +34,7 @@ import math
 import torch
 from torch import nn
 
-from .encoders import chunked, mlp
+from .encoders import mlp
 
 __all__ = ["group_division", "gcn_layer", "GroupInformationFusion", "random_permutation"]
 
@@ -70,14 +70,15 @@ def group_division(perm: torch.Tensor, group_size: int = 3) -> torch.Tensor:
         return ids.view(1, 1, 1, 1).expand(B, 1, 1, 1).clone()
     m = min(group_size - 1, N - 1)
     full = perm.unsqueeze(1).expand(B, N, N) if perm.dim() == 2 else perm
-    others = full[full != ids.view(1, N, 1)].view(B, N, N - 1)  # order kept, k removed
+    at = (full == ids.view(1, N, 1)).to(torch.uint8).argmax(-1) if perm.dim() == 3 else perm.argsort(-1)  # k's place
     G = math.ceil((N - 1) / m)
     pad = G * m - (N - 1)
-    if pad:  # uneven: the first agents of the random order join a second group
-        others = torch.cat([others, others[..., :pad]], dim=-1)
-    groups = others.view(B, N, G, m)
-    me = ids.view(1, N, 1, 1).expand(B, N, G, 1)
-    return torch.cat([me, groups], dim=-1)
+    # the order without k (positions from k's on read one further), then, when uneven, its first agents again
+    i = torch.cat([ids[:N - 1], ids[:pad]]).expand(B, N, -1)
+    groups = torch.empty(B, N, G, m + 1, dtype=perm.dtype, device=perm.device)
+    groups[..., 1:] = torch.gather(full, 2, i + (i >= at.unsqueeze(-1))).view(B, N, G, m)
+    groups[..., 0] = ids.view(1, N, 1)
+    return groups
 
 
 def gcn_layer(h: torch.Tensor, adj: torch.Tensor, linear: nn.Module, activation=torch.relu) -> torch.Tensor:
@@ -107,30 +108,35 @@ class GroupInformationFusion(nn.Module):
 
     Nodes are embedded (Linear + ReLU, F -> L), each subgraph runs ``layers`` GCN layers, and
     ``k``'s node (index 0 of each group) is averaged over the groups that have at least
-    one alive other member (over all groups when none has).
+    one alive other member (over all groups when none has). ``kernel``: one layer on pair features that need
+    no gradient runs :class:`masp_lite.nets.kernels.OneLayerFusion` (:func:`~masp_lite.nets.kernels.use_kernels`).
     """
 
-    def __init__(self, in_features: int, width: int = 32, layers: int = 1):
+    def __init__(self, in_features: int, width: int = 32, layers: int = 1, kernel: bool = True):
         super().__init__()
-        self.embed = mlp([in_features, width], last_activation=True)
+        self.kernel, self.embed = kernel, mlp([in_features, width], last_activation=True)
         self.gcn = nn.ModuleList(nn.Linear(width, width) for _ in range(layers))
 
     def forward(self, pair_features: torch.Tensor, groups: torch.Tensor, alive: torch.Tensor) -> torch.Tensor:
         B, N, G, n = groups.shape
         flat = groups.reshape(B, N, G * n)
-        member = torch.gather(alive.unsqueeze(1).expand(B, N, N), 2, flat).view(B, N, G, n).clone()
-        member[..., 0] = True                                           # k is always in its groups
-        valid = member[..., 1:].any(-1) if n > 1 else member[..., 0]
-        w = valid.to(pair_features.dtype)
-        w = torch.where(w.sum(-1, keepdim=True) > 0, w, torch.ones_like(w))
-        if len(self.gcn) == 1 and chunked() and not pair_features.requires_grad:
+        kernel = len(self.gcn) == 1 and self.kernel and not pair_features.requires_grad
+        if kernel and bool(alive.all()):  # every member alive: no masks, every group counts (no N^2 gathers)
+            member, w = None, torch.ones(B, N, G, dtype=pair_features.dtype, device=pair_features.device)
+        else:
+            member = torch.gather(alive.unsqueeze(1).expand(B, N, N), 2, flat).view(B, N, G, n).clone()
+            member[..., 0] = True                                       # k is always in its groups
+            valid = member[..., 1:].any(-1) if n > 1 else member[..., 0]
+            w = valid.to(pair_features.dtype)
+            w = torch.where(w.sum(-1, keepdim=True) > 0, w, torch.ones_like(w))
+        if kernel:
             # Only k's row of the one layer is needed; with unit edges it is the mean over the
             # group's members (see masp_lite.nets.kernels.OneLayerFusion).
             from .kernels import OneLayerFusion
-            others = member[..., 1:]
+            others = None if member is None or bool(member[..., 1:].all()) else member[..., 1:]
             embed, gcn = self.embed[0], self.gcn[0]
-            return OneLayerFusion.apply(pair_features, groups, None if bool(others.all()) else others,
-                                         w / w.sum(-1, keepdim=True), embed.weight, embed.bias, gcn.weight, gcn.bias)
+            return OneLayerFusion.apply(pair_features, groups, others, w / w.sum(-1, keepdim=True),
+                                         embed.weight, embed.bias, gcn.weight, gcn.bias)
         h = self.embed(pair_features)                               # (B, N, N, L)
         L = h.shape[-1]
         m = member.to(h.dtype)
