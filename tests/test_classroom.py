@@ -39,7 +39,9 @@ BIN = Path(sys.executable).parent
 def _nbgrader(folder, *args, timeout=900):
     # PATH without the environment's bin/: the course folder's config must find alembic by itself
     path = os.pathsep.join(p for p in os.environ.get("PATH", "").split(os.pathsep) if Path(p) != BIN)
-    env = dict(os.environ, PATH=path)
+    tmp = Path(folder).parent / "tmp"  # autograde's kernels get this test's own temp folder (tests/test_notebooks.py)
+    tmp.mkdir(exist_ok=True)
+    env = dict(os.environ, PATH=path, TMPDIR=str(tmp))
     env.pop("MASP_LITE_FAST", None)  # the course folder's config sets fast mode for grading
     proc = subprocess.run([str(BIN / "nbgrader"), *args], cwd=folder, env=env, capture_output=True, text=True,
                           timeout=timeout)

@@ -10,7 +10,7 @@ from masp_lite.__main__ import main
 
 
 def test_evaluate_writes_json(tmp_path, capsys):
-    out = tmp_path / "res" / "h.json"
+    out = tmp_path / "h.json"
     rc = main(["evaluate", "--method", "h-greedy", "--scenario", "mpe-5", "--episodes", "2",
                "--seeds", "0", "1", "--set", "horizon=6", "--set", "global_step=2", "--json", str(out)])
     assert rc == 0
@@ -66,15 +66,16 @@ def test_json_path_is_checked_before_the_evaluation(tmp_path, capsys, monkeypatc
     (tmp_path / "a_file").write_text("")
     for bad, words in ((tmp_path / "a_file" / "out.json", "is a file, not a folder"),
                        (tmp_path / "a_file" / "deeper" / "out.json", "is a file, not a folder"),
+                       (tmp_path / "new" / "out.json", f"the folder '{tmp_path / 'new'}' does not exist"),
                        (tmp_path, "is a folder")):
         assert main(["evaluate", "--method", "h-greedy", "--scenario", "mpe-5", "--json", str(bad)]) == 2
         err = capsys.readouterr().err
         assert err.startswith("error: --json") and words in err and "Traceback" not in err
     monkeypatch.setattr(cli_evaluate.os, "access", lambda path, mode: False)  # a read-only place
-    out = tmp_path / "new" / "o.json"
+    out = tmp_path / "o.json"
     assert main(["evaluate", "--method", "h-greedy", "--scenario", "mpe-5", "--json", str(out)]) == 2
     assert "is not writable" in capsys.readouterr().err
-    assert not (tmp_path / "new").exists()  # nothing created by the check
+    assert not out.exists() and not (tmp_path / "new").exists()  # nothing created by the check
 
 
 def test_table_shows_the_set_overrides_and_options(tmp_path, capsys):
@@ -112,6 +113,31 @@ def test_readme_and_every_help_say_how_to_run_with_the_course_environment(capsys
         text = " ".join(capsys.readouterr().out.split())
         assert " ".join(ENVIRONMENT.split()) in text, name
         assert re.findall(r"(?<![\w/.])python -m masp_lite \w+ --", text) == [], name  # examples spelt as README
+
+
+def test_the_readmes_set_up_commands_are_cis_and_keep_torchs_cpu_wheel():
+    """The README's course and test commands install as ``.ci/run`` does (the test command is CI's, ``-q``
+    aside); its CPU-wheel command takes ``environment.txt``'s torch pin from PyTorch's CPU index; and
+    ``environment.txt`` pins, exactly, every requirement ``pyproject.toml`` declares."""
+    import tomllib
+    readme = (ROOT / "README.md").read_text()
+    blocks = [b.strip() for b in re.findall(r"```bash\n(.*?)```", readme, flags=re.S)]
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1].replace(" -q ", " ")
+    install = "python3 -m venv .venv && .venv/bin/pip install -r environment.txt -e ."
+    assert ci.startswith(install + " && ") and ci in blocks
+    course = [b for b in blocks if ".venv/bin/jupyter lab --config=" in b]
+    assert len(course) == 1 and course[0].startswith(install + " && ") and "\n" not in course[0]
+    env = (ROOT / "environment.txt").read_text()
+    assert "#   pip install -r environment.txt -e ." in env  # its own install line is the README's
+    pins = dict(line.split("==") for line in env.splitlines() if line and not line.startswith("#"))
+    assert all(re.fullmatch(r"[\w.]+", v) for v in pins.values()), pins  # exact versions, no local label
+    cpu = f"python3 -m venv .venv && .venv/bin/pip install torch=={pins['torch']} --index-url " \
+          "https://download.pytorch.org/whl/cpu"
+    assert cpu in blocks and f"`torch=={pins['torch']}`" in readme
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    declared = {re.split(r"[<>=!~\[; ]", r)[0].lower().replace("_", "-") for r in
+                [*project["dependencies"], *(r for extra in project["optional-dependencies"].values() for r in extra)]}
+    assert declared - {k.lower() for k in pins} == set()
 
 
 def test_nbgrader_loads_the_course_config_and_it_agrees_with_generate(monkeypatch, tmp_path):
@@ -163,15 +189,41 @@ def test_usage_lines_name_the_program_that_was_run(capsys):
     assert capsys.readouterr().out.startswith("usage: masp-lite COMMAND")
 
 
+@pytest.mark.parametrize("prog", ["masp-lite", "python -m masp_lite"])
+def test_an_installed_copys_every_help_names_its_program_and_no_checkout(prog, monkeypatch, capsys):
+    """Without a checkout (an installed copy), the help of every command and bench target: the usage line and the
+    examples under the name that was run, nothing about a repository root or its ``.venv``
+    (``tests/test_installed.py`` runs a few of them from a built wheel)."""
+    import contextlib
+
+    import masp_lite.cli as cli
+    from masp_lite.bench import TARGETS
+    monkeypatch.setattr(cli, "in_checkout", lambda: False)
+    for argv in [[], *([c] for c in cli.COMMANDS), *(["bench", t] for t in TARGETS)]:
+        with pytest.raises(SystemExit) if argv else contextlib.nullcontext():
+            main([*argv, "--help"], prog=prog)
+        text = capsys.readouterr().out
+        assert text.startswith(f"usage: {prog} {' '.join(argv) or 'COMMAND'}"), text[:200]
+        assert ".venv" not in text and "repository root" not in text, (argv, text[-600:])
+        examples = text.split("examples:\n", 1)[1].split("\n\n")[0].splitlines() if argv else []
+        assert all(line.startswith(f"  {prog} {argv[0]} ") for line in examples), (argv, examples)
+        assert examples or not argv, f"{argv}: no examples"
+
+
 def test_what_the_readmes_commands_leave_behind_is_ignored():
-    """``pip install .`` (``build/``), ``play ... --out drones.html`` / ``episode.gif`` and ``evaluate --json
-    out.json``, run at the repository root as the README runs them, leave no untracked file."""
+    """``pip install .`` (``build/``), every file or folder the README's commands name (``play ... --out
+    drones.html``, ``evaluate --json out.json``, ``train --out runs/...``, ``classroom init classroom --learners
+    masp-lite-course``), chapter 00's ``--json results.json`` and the formgrader's database, made at the
+    repository root as the README runs them, leave no untracked file."""
     import shutil
     import subprocess
     if shutil.which("git") is None or not (ROOT / ".git").exists():
         pytest.skip("not a git checkout")
-    made = ["build/lib/masp_lite/__init__.py", "build/bdist.linux-x86_64/x", "drones.html", "episode.gif",
-            "out.json", "masp_lite.egg-info/PKG-INFO"]
+    commands = "".join(re.findall(r"```bash\n(.*?)```", (ROOT / "README.md").read_text(), flags=re.S))
+    named = re.findall(r"(?:--out|--json|--learners|classroom init) ([\w./-]+)", commands)
+    assert {"out.json", "episode.gif", "drones.html", "runs/mpe-20", "classroom", "masp-lite-course"} <= set(named)
+    made = ["build/lib/masp_lite/__init__.py", "build/bdist.linux-x86_64/x", "masp_lite.egg-info/PKG-INFO",
+            "results.json", "gradebook.db", *dict.fromkeys(n if Path(n).suffix else f"{n}/x" for n in named)]
     out = subprocess.run(["git", "check-ignore", "--no-index", *made], cwd=ROOT, capture_output=True, text=True)
     assert sorted(out.stdout.split()) == sorted(made)
     kept = ["README.md", "masp_lite/viz/template.html", "results/README.md", "solutions/00_tour.ipynb"]

@@ -68,7 +68,7 @@ def test_landmarks_are_marked_and_the_page_names_method_and_colours(episode):
     assert meshcat3d.record_episode("h-greedy", "drone-5", horizon=2)["method"] == "h-greedy"
 
 
-def test_chapter_08_saved_outputs_embed_the_view_not_a_server_frame(monkeypatch):
+def test_chapter_08_saved_outputs_embed_the_view_not_a_server_frame(monkeypatch, tmp_path):
     """Run chapter 08's setup and 3-D section as the learner would and save it: the saved outputs
     hold the standalone view (an ``iframe srcdoc``), not a frame on the local server, which is
     blank once the server is gone (every time the saved notebook is opened again)."""
@@ -82,6 +82,7 @@ def test_chapter_08_saved_outputs_embed_the_view_not_a_server_frame(monkeypatch)
     part = nbformat.v4.new_notebook(cells=setup + section, metadata=chapter.metadata)
     monkeypatch.setenv("MASP_LITE_FAST", "1")
     monkeypatch.setenv("MPLBACKEND", "Agg")
+    monkeypatch.setenv("TMPDIR", str(tmp_path))  # the kernel's own temp folder (tests/test_notebooks.py)
     nbclient.NotebookClient(part, timeout=300, resources={"metadata": {"path": str(ROOT)}}).execute()
     saved = nbformat.reads(nbformat.writes(part), as_version=4)          # what a saved notebook holds
     html = [value for cell in saved.cells for out in cell.get("outputs", [])

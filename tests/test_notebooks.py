@@ -14,7 +14,9 @@ nbval stops each kernel by killing it, so a chapter's ``tempfile.TemporaryDirect
 temporary folder of its own (``TMPDIR``, inside pytest's ``tmp_path``, which pytest rotates), and
 the instructor run checks that chapter 06's run folder landed there. No test looks at the system's
 shared temporary folder: another process running chapter 06 or 11 at the same moment makes its own
-``masp-run-*`` folders there, and they are none of these tests' business.
+``masp-run-*`` folders there, and they are none of these tests' business. Every other test that starts a
+kernel (chapter 08's 3-D section, nbgrader's autograde, the exercises' cheats) does the same, and a test
+reads the suite for it.
 """
 import ast
 import inspect
@@ -54,6 +56,23 @@ def test_instructor_notebook_runs_under_nbval(path, tmp_path):
     if path.stem in KEEPS_A_RUN_FOLDER:  # the kernel used this test's temp folder, not the system's
         assert list(own_tmp.glob("masp-run-*")), f"{path.name} made no run folder in its own temp folder {own_tmp}"
     print(f"solutions/{path.name}: {took:.0f} s")
+
+
+#: What starts a notebook kernel in a test: nbclient, nbval in a subprocess, nbgrader's commands (autograde).
+KERNEL_START = re.compile(r"NotebookClient\(|--nbval|/ \"nbgrader\"")
+
+
+def test_every_kernel_a_test_starts_gets_a_temporary_folder_of_its_own():
+    """Each function of the test suite that starts a kernel sets its ``TMPDIR`` (see the module docstring)."""
+    shared = []
+    for path in sorted(Path(__file__).parent.glob("test_*.py")):
+        source = path.read_text(encoding="utf-8")
+        for node in ast.walk(ast.parse(source)):
+            if isinstance(node, ast.FunctionDef):
+                body = ast.get_source_segment(source, node)
+                if KERNEL_START.search(body) and "TMPDIR" not in body:
+                    shared.append(f"{path.name}::{node.name}")
+    assert shared == [], f"kernels started in the machine's shared temporary folder: {shared}"
 
 
 def references(instructor: nbformat.NotebookNode) -> dict[str, str]:

@@ -5,9 +5,10 @@ Runs :func:`masp_lite.evaluation.evaluate` and prints the record as the paper's 
 method's options (``power=2``), each value parsed by the type of what it sets
 (:func:`masp_lite.parsing.parse_sets`, the parser every command uses). The table shows them
 beside the method and scenario. ``--json PATH`` is checked to be writable before the run, so
-a bad path fails at once rather than after the whole evaluation. ``--threads`` is torch's thread
-count (default :data:`~masp_lite.threads.EVALUATE_THREADS`, the count every committed record names:
-a second thread buys nothing for a world's step or a decision, see :mod:`masp_lite.threads`).
+a bad path (in a folder that does not exist, say) fails at once rather than after the whole
+evaluation. ``--threads`` is torch's thread count (default :data:`~masp_lite.threads.EVALUATE_THREADS`,
+the count every committed record names: a second thread buys nothing for a world's step or a
+decision, see :mod:`masp_lite.threads`).
 """
 from __future__ import annotations
 
@@ -73,11 +74,12 @@ class _Any(dict):
 def check_writable(path, flag: str = "--json", example: str = "out.json") -> Path:
     """``path`` as a ``Path`` when the record can be written there later; else one ValueError.
 
-    Nothing is created now (:func:`run` makes missing folders when it writes): ``path`` must
-    be a writable file, or its nearest existing folder must be a writable folder; a regular
-    file on the way, or ``path`` itself a folder, fails. Missing folders are never made at the
-    file system's root (``/nonexistent/x.json``): that is almost always a relative path written
-    with a leading ``/``, so it fails with the relative path as a suggestion."""
+    Nothing is created: ``path`` must be a writable file, or a new file in an existing, writable
+    folder. A missing folder is refused, not made: a file option (``evaluate --json``, ``play
+    --out``, ``bench ... --json``) writes one file where the user points, as a shell's ``>`` does,
+    so a mistyped folder (``/nonexistent/x.json``, a folder at the file system's root) is one
+    clear error rather than a new folder tree. Folder options (``train --out``) make their folder.
+    A regular file on the way, or ``path`` itself a folder, fails too."""
     if not str(path).strip():
         raise ValueError(f"{flag}: expected a file path such as {example!r}, got an empty string")
     path = Path(path)
@@ -92,11 +94,9 @@ def check_writable(path, flag: str = "--json", example: str = "out.json") -> Pat
     folder = path.parent
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
-    if path.is_absolute() and folder == folder.parent and not path.parent.exists():  # a new folder at the root
-        missing = path.parent.relative_to(folder).parts[0]
-        raise ValueError(f"{flag} {str(path)!r}: the folder {str(folder / missing)!r} does not exist, and masp-lite "
-                         f"does not create folders at the file system's root; expected an existing folder or a "
-                         f"relative path such as {str(path.relative_to(folder))!r}")
+    if folder.is_dir() and folder != path.parent:  # the nearest existing folder is not the file's own
+        raise ValueError(f"{flag} {str(path)!r}: the folder {str(path.parent)!r} does not exist; expected a file "
+                         f"in an existing folder (create the folder first, or write {path.name!r} elsewhere)")
     if not folder.is_dir():
         raise ValueError(f"{flag} {str(path)!r}: {str(folder)!r} is a file, not a folder; expected a writable path")
     probe = folder / f".masp-lite-probe-{os.getpid()}"
