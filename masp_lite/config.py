@@ -7,8 +7,10 @@
   the shipped weights until 2026-12 were trained with ``gm_reference="squared"`` (then
   spelt ``gm_reference_power=2``);
 * :class:`RunConfig` — the schedule: worlds, updates, stages, evaluation, checkpoints;
-* :class:`TrainConfig` — the four together. Its field names are unique across the
-  four, so ``--set lr=2e-4`` needs no prefix and a manifest stores one flat dict.
+* :class:`ImitationConfig` — a supervised stage for the Goal Matcher in place of MAPPO (``masp-minmax``'s
+  first stage, not the paper's; :mod:`masp_lite.algos.imitation`);
+* :class:`TrainConfig` — the parts together. Its field names are unique across the
+  parts, so ``--set lr=2e-4`` needs no prefix and a manifest stores one flat dict.
 
 Every command's ``--set KEY=VALUE`` converts a value by the type of the field it sets
 (:func:`masp_lite.parsing.parse_sets`) — the annotations below are real types (no
@@ -20,7 +22,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig"]
+__all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "ImitationConfig", "TrainConfig"]
 
 
 GM_REFERENCES = ("distance", "squared")
@@ -29,6 +31,12 @@ GOAL_MATCHERS = ("graph", "mlp", "random", "hungarian", "none")
 EXECUTORS = ("graph", "mlp", "nearest", "subgraph", "attention", "radius")
 ACTIONS = ("discrete", "throttle", "velocity")
 """The settings of :attr:`NetConfig.goal_matcher`, :attr:`NetConfig.executor` and :attr:`NetConfig.action`."""
+TEACHERS = ("none", "h-bottleneck")
+IMITATION_LOSSES = ("sequential", "independent", "decoding")
+IMITATION_STATES = ("spawn", "rollout")
+IMITATION_CREDITS = ("teacher", "within")
+"""The settings of :attr:`ImitationConfig.imitate`, :attr:`ImitationConfig.imitation_loss` and
+:attr:`ImitationConfig.imitation_states` (:mod:`masp_lite.algos.imitation` holds what each means)."""
 
 
 def _check(obj, name, low=None, high=None, integer=False):
@@ -197,7 +205,45 @@ class RunConfig:
             raise ValueError(f"train_executor: expected true or false, got {self.train_executor!r}")
 
 
-_PARTS = {"net": NetConfig, "ppo": PPOConfig, "reward": RewardConfig, "run": RunConfig}
+@dataclass
+class ImitationConfig:
+    """A supervised stage for the Goal Matcher (ours, not the paper's): :mod:`masp_lite.algos.imitation`.
+
+    With ``imitate`` set, a run's iterations train the Goal Matcher to reproduce a teacher's assignment
+    instead of running MAPPO; the executor drives unchanged (``train_executor=false``)."""
+
+    imitate: str = "none"
+    """The assignment the Goal Matcher learns to reproduce: ``none`` (no imitation: MAPPO, the paper's
+    training) or ``h-bottleneck``, the min-max assignment (:func:`masp_lite.algos.team.bottleneck`)."""
+    imitation_loss: str = "sequential"
+    """``sequential``: the negative log-likelihood of the teacher's goals under the training draw (agents
+    in a random order, each among the goals left); ``independent``: every agent's own categorical alone;
+    ``decoding``: a structured margin that makes the evaluation's conflict-free decoding return an assignment
+    no longer at its longest than the teacher's."""
+    imitation_margin: float = 1.0
+    """The ``decoding`` loss's margin per agent beyond the teacher's longest trip (in the decoding's cost,
+    squared nats)."""
+    imitation_credit: str = "teacher"
+    """What counts as right for an agent: ``teacher``, the teacher's goal; ``within``, any allowed goal no
+    farther than the teacher's longest trip in the layout (the min-max assignment is one of many with that
+    longest trip: the others' choices among them are ties of the objective)."""
+    imitation_states: str = "spawn"
+    """Where the layouts come from: ``spawn``, fresh episode starts (``num_envs`` an iteration, no step
+    simulated); ``rollout``, every global step of one episode of every world, the Goal Matcher's own draw
+    choosing the goals (DAgger's states)."""
+    imitation_epochs: int = 1
+    """Passes over each iteration's layouts, in batches of ``num_envs`` layouts (one gradient step each)."""
+
+    def __post_init__(self):
+        for name, allowed in (("imitate", TEACHERS), ("imitation_loss", IMITATION_LOSSES),
+                              ("imitation_states", IMITATION_STATES), ("imitation_credit", IMITATION_CREDITS)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name}: expected one of {list(allowed)}, got {getattr(self, name)!r}")
+        _check(self, "imitation_epochs", 1, integer=True)
+        _check(self, "imitation_margin", 0.0)
+
+
+_PARTS = {"net": NetConfig, "ppo": PPOConfig, "reward": RewardConfig, "run": RunConfig, "imitation": ImitationConfig}
 
 
 @dataclass
@@ -212,6 +258,8 @@ class TrainConfig:
     """Rewards (:class:`RewardConfig`)."""
     run: RunConfig = field(default_factory=RunConfig)
     """Schedule (:class:`RunConfig`)."""
+    imitation: ImitationConfig = field(default_factory=ImitationConfig)
+    """A supervised stage for the Goal Matcher (:class:`ImitationConfig`); none by default."""
 
     @classmethod
     def keys(cls) -> dict[str, str]:

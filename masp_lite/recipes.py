@@ -19,14 +19,14 @@ curves, wall-clock here).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .files import read_bounded
 from .training import method_config, train
 
 __all__ = ["Stage", "Recipe", "RECIPES", "FROM_SCRATCH", "get_recipe", "recipe_names", "stage_config",
-           "run_recipe", "EVAL_SETTINGS"]
+           "run_recipe", "EVAL_SETTINGS", "IMITATION"]
 
 FROM_SCRATCH = {"ppo_epochs": 5, "collision_coef": 2.0}
 """The one-stage recipe from random networks (``faithful``, the ablations, the particle RL baselines,
@@ -142,6 +142,36 @@ MASP = Recipe("masp", "masp", (
 ), "the shipped MASP on the particle presets (masp_lite/weights/mpe-*.pt); mpe-20to10 and mpe-50to20 run "
    "the mpe-20 weights zero-shot")
 
+IMITATION = {"imitate": "h-bottleneck", "train_executor": False, "imitation_loss": "decoding",
+             "imitation_margin": 4.0, "imitation_states": "spawn", "eval_every": 0, "eval_episodes": 32,
+             "checkpoint_every": 25}
+"""The imitation stage of ``masp-minmax`` (ours: :mod:`masp_lite.algos.imitation`): h-bottleneck's min-max
+assignment on fresh episode starts, the Goal Matcher alone."""
+
+
+def _minmax_chain(preset: str, start: str, imitation: int, fine_tune: tuple) -> tuple:
+    """``masp-minmax`` on one preset: imitation of h-bottleneck from MASP's weights (its stage ``start``),
+    then MAPPO on R_GM with the Goal Matcher alone (the paper's training, at a fine-tune's step size)."""
+    iterations, worlds, every = fine_tune
+    return (Stage(f"imitate-{preset}", preset, imitation, 32, IMITATION, start),
+            Stage(f"minmax-{preset}", preset, iterations, worlds,
+                  {"train_executor": False, "lr": 2e-4, "entropy_coef": 0.005, "gm_ppo_epochs": 4,
+                   "gm_reference": "squared", **EVAL_SETTINGS, "eval_every": every}, f"imitate-{preset}",
+                  keep=f"masp-minmax/{preset}"))
+
+
+MASP_MINMAX = Recipe("masp-minmax", "masp-minmax", (
+    # MASP's own stages (not kept here: the plan trains them once, with masp's); the executor is MASP's
+    *(replace(s, keep=None) for s in MASP.chain("mpe-20")),
+    *(replace(s, keep=None) for s in MASP.chain("mpe-5")),
+    *_minmax_chain("mpe-20", "mpe-20", 600, (150, 32, 25)),
+    *_minmax_chain("mpe-50", "mpe-20", 600, (200, 16, 25)),
+    *_minmax_chain("mpe-5", "mpe-5", 600, (300, 64, 50)),
+), "beyond the paper: MASP's Goal Matcher taught h-bottleneck's min-max assignment, then MAPPO on R_GM, the "
+   "executor MASP's; until MASP is retrained, run an imitate-* stage with --init masp_lite/weights/mpe-20.pt "
+   "(mpe-5.pt for mpe-5)")
+
+
 def _drone_masp(name: str, method: str, executor_iterations: int, executor_eval: int, keep: str, about: str):
     """MASP on drones: the executor first, flying to Hungarian goals (ours: a curriculum; the paper trains both
     levels together), then the Goal Matcher alone; drone-20 fine-tunes drone-5's executor the same way."""
@@ -163,7 +193,7 @@ MASP_VELOCITY = _drone_masp("masp-velocity", "masp-velocity", 300, 10, "masp-vel
                             "MASP whose executor asks the geometric controller for a velocity (ours, not the paper's)")
 
 RECIPES: dict[str, Recipe] = {r.name: r for r in (
-    MASP, MASP_DRONE, MASP_VELOCITY,
+    MASP, MASP_DRONE, MASP_VELOCITY, MASP_MINMAX,
     _one_stage("faithful", "masp", {}, "MASP with eq. 1 as written, mpe-20 from random networks"),
     # the paper's ablations, each the faithful recipe with one setting changed
     _one_stage("masp-rg", "masp-rg", {}, "MASP w. RG: distinct random goals"),
