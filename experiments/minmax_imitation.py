@@ -7,13 +7,18 @@ Usage (from the repository root)::
     python -m experiments.minmax_imitation measure masp_lite/weights/mpe-20.pt
 
 ``train`` runs the product's imitation stage (``train --method masp-minmax --set imitate=h-bottleneck``, from
-``--init``, by default the shipped mpe-20 weights) and, every ``--measure-every`` iterations, measures the
-Goal Matcher on validation layouts; ``measure`` measures a weights file. On episode starts of evaluation seed
-``--seed`` (100+: never a training or record seed), ``--layouts`` of each validation scenario (mpe-20, mpe-50,
-and mpe-50 with 100 agents, zero-shot), it prints one JSON line with, per scenario, how often the policy's
-decoding (the conflict-free squared decoding of ``evaluate``) equals ``h-bottleneck``'s assignment (per
-layout: ``exact``; per agent: ``agree``) and the ratio of the decoded assignment's longest agent-goal distance
-to the bottleneck's (``makespan``: mean over layouts; ``within5``: share of layouts within 5 %).
+``--init``, by default the shipped mpe-20 weights; ``--loss decoding``, the product's margin) or the same
+stage with a loss tried and not kept (``--loss sequential`` or ``independent``: the likelihood of the
+teacher's goals under the training draw, :func:`masp_lite.algos.imitation.draw_nll`; ``--credit within``
+counts every goal within the teacher's longest trip as right; a trainer subclass, :class:`Likelihood`) and,
+every ``--measure-every`` iterations, measures the Goal Matcher on validation layouts; ``measure`` measures
+weights files. On episode starts of evaluation seed ``--seed`` (100+: never a training or record seed),
+``--layouts`` of each validation scenario (mpe-20, mpe-50, and mpe-50 with 100 agents, zero-shot), it prints
+one JSON line with, per scenario, how often the policy's decoding (the conflict-free squared decoding of
+``evaluate``) equals ``h-bottleneck``'s assignment (per layout: ``exact``; per agent: ``agree``), the ratio of
+the decoded assignment's longest agent-goal distance to the bottleneck's (``makespan``: mean over layouts;
+``within5``: share of layouts within 5 %), and the same ratio for the training draw (``draw``: agents in a
+random order, each sampling among the goals left), the goals MAPPO's rollouts fly to.
 """
 from __future__ import annotations
 
@@ -24,12 +29,33 @@ from pathlib import Path
 
 import torch
 
+from masp_lite.algos.imitation import ImitationTrainer, draw_nll, random_rank, within_longest_trip
 from masp_lite.algos.team import bottleneck
 from masp_lite.envs import make
 from masp_lite.nets.decoding import joint_argmax
 from masp_lite.nets.goal_draw import sequential_sample
 from masp_lite.training import method_config, train
 from masp_lite.weights import load_weights, save_weights
+
+
+class Likelihood(ImitationTrainer):
+    """The imitation stage with the draw's likelihood of the teacher's goals as its loss (not kept)."""
+
+    sequential, credit = True, "teacher"
+
+    def loss(self, logits, obs, targets, goal_mask):
+        rank = random_rank(*targets.shape, self.generator) if self.sequential else None
+        accept = within_longest_trip(obs, targets, goal_mask) if self.credit == "within" else None
+        return draw_nll(logits, targets, obs["alive"], rank, goal_mask, accept)
+
+
+def trainer_type(loss: str, credit: str):
+    """The trainer of a ``--loss``: the product's (``None``) for ``decoding``, else a :class:`Likelihood`."""
+    if loss == "decoding":
+        return None
+    return type(f"Likelihood_{loss}_{credit}", (Likelihood,), {"sequential": loss == "sequential",
+                                                                "credit": credit})
+
 
 VALIDATION = {"mpe-20": {}, "mpe-50": {}, "mpe-50 N=100": {"num_agents": 100}}
 """Validation scenario -> (preset, overrides) of its layouts."""
@@ -87,10 +113,9 @@ def run_train(args) -> None:
         Path(args.out).mkdir(parents=True, exist_ok=True)
         args.init = fresh_goal_matcher(args.init, str(Path(args.out).parent / (Path(args.out).name + "-init.pt")),
                                        args.train_seed)
-    sets = ["imitate=h-bottleneck", "train_executor=false", f"imitation_loss={args.loss}",
-            f"imitation_states={args.states}", f"imitation_epochs={args.epochs}", f"updates={args.updates}",
-            f"num_envs={args.worlds}", f"lr={args.lr}", "eval_every=0", f"eval_episodes={args.eval_episodes}",
-            f"checkpoint_every={args.measure_every}", *args.set]
+    sets = ["imitate=h-bottleneck", "train_executor=false", f"imitation_states={args.states}",
+            f"updates={args.updates}", f"num_envs={args.worlds}", f"lr={args.lr}", "eval_every=0",
+            f"eval_episodes={args.eval_episodes}", f"checkpoint_every={args.measure_every}", *args.set]
     method, cfg, overrides = method_config("masp-minmax", sets, args.scenario)
     t0 = time.perf_counter()
 
@@ -103,7 +128,7 @@ def run_train(args) -> None:
 
     manifest = train(args.scenario, cfg, args.out, seed=args.train_seed, resume=args.resume,
                      init=None if args.resume else args.init, overrides=overrides, progress=False,
-                     on_iteration=report, method=method)
+                     on_iteration=report, method=method, trainer_type=trainer_type(args.loss, args.credit))
     print(json.dumps({"final_eval": manifest["final_eval"], "wall_clock_s": manifest["wall_clock_s"]}), flush=True)
 
 
@@ -121,9 +146,9 @@ def main(argv=None) -> None:
     sub = parser.add_subparsers(dest="command", required=True)
     t = sub.add_parser("train")
     t.add_argument("--scenario", default="mpe-50")
-    t.add_argument("--loss", default="sequential", choices=("sequential", "independent", "decoding"))
+    t.add_argument("--loss", default="decoding", choices=("decoding", "sequential", "independent"))
     t.add_argument("--states", default="spawn", choices=("spawn", "rollout"))
-    t.add_argument("--epochs", type=int, default=1)
+    t.add_argument("--credit", default="teacher", choices=("teacher", "within"))
     t.add_argument("--updates", type=int, default=300)
     t.add_argument("--worlds", type=int, default=32)
     t.add_argument("--lr", type=float, default=7e-4)

@@ -7,8 +7,7 @@
   the shipped weights until 2026-12 were trained with ``gm_reference="squared"`` (then
   spelt ``gm_reference_power=2``);
 * :class:`RunConfig` — the schedule: worlds, updates, stages, evaluation, checkpoints;
-* :class:`ImitationConfig` — a supervised stage for the Goal Matcher in place of MAPPO (``masp-minmax``'s
-  first stage, not the paper's; :mod:`masp_lite.algos.imitation`);
+* :class:`ImitationConfig` — imitation for the Goal Matcher in place of MAPPO (``masp-minmax``'s first stages);
 * :class:`TrainConfig` — the parts together. Its field names are unique across the
   parts, so ``--set lr=2e-4`` needs no prefix and a manifest stores one flat dict.
 
@@ -32,11 +31,8 @@ EXECUTORS = ("graph", "mlp", "nearest", "subgraph", "attention", "radius")
 ACTIONS = ("discrete", "throttle", "velocity")
 """The settings of :attr:`NetConfig.goal_matcher`, :attr:`NetConfig.executor` and :attr:`NetConfig.action`."""
 TEACHERS = ("none", "h-bottleneck")
-IMITATION_LOSSES = ("sequential", "independent", "decoding")
 IMITATION_STATES = ("spawn", "rollout")
-IMITATION_CREDITS = ("teacher", "within")
-"""The settings of :attr:`ImitationConfig.imitate`, :attr:`ImitationConfig.imitation_loss` and
-:attr:`ImitationConfig.imitation_states` (:mod:`masp_lite.algos.imitation` holds what each means)."""
+"""The settings of :attr:`ImitationConfig.imitate` and :attr:`ImitationConfig.imitation_states`."""
 
 
 def _check(obj, name, low=None, high=None, integer=False):
@@ -207,39 +203,20 @@ class RunConfig:
 
 @dataclass
 class ImitationConfig:
-    """A supervised stage for the Goal Matcher (ours, not the paper's): :mod:`masp_lite.algos.imitation`.
-
-    With ``imitate`` set, a run's iterations train the Goal Matcher to reproduce a teacher's assignment
-    instead of running MAPPO; the executor drives unchanged (``train_executor=false``)."""
+    """The Goal Matcher taught a teacher's assignment instead of MAPPO (ours): :mod:`masp_lite.algos.imitation`."""
 
     imitate: str = "none"
-    """The assignment the Goal Matcher learns to reproduce: ``none`` (no imitation: MAPPO, the paper's
-    training) or ``h-bottleneck``, the min-max assignment (:func:`masp_lite.algos.team.bottleneck`)."""
-    imitation_loss: str = "sequential"
-    """``sequential``: the negative log-likelihood of the teacher's goals under the training draw (agents
-    in a random order, each among the goals left); ``independent``: every agent's own categorical alone;
-    ``decoding``: a structured margin that makes the evaluation's conflict-free decoding return an assignment
-    no longer at its longest than the teacher's."""
-    imitation_margin: float = 1.0
-    """The ``decoding`` loss's margin per agent beyond the teacher's longest trip (in the decoding's cost,
-    squared nats)."""
-    imitation_credit: str = "teacher"
-    """What counts as right for an agent: ``teacher``, the teacher's goal; ``within``, any allowed goal no
-    farther than the teacher's longest trip in the layout (the min-max assignment is one of many with that
-    longest trip: the others' choices among them are ties of the objective)."""
+    """The teacher: ``none`` (MAPPO, the paper's training) or ``h-bottleneck``'s min-max assignment."""
     imitation_states: str = "spawn"
-    """Where the layouts come from: ``spawn``, fresh episode starts (``num_envs`` an iteration, no step
-    simulated); ``rollout``, every global step of one episode of every world, the Goal Matcher's own draw
-    choosing the goals (DAgger's states)."""
-    imitation_epochs: int = 1
-    """Passes over each iteration's layouts, in batches of ``num_envs`` layouts (one gradient step each)."""
+    """Its layouts: ``spawn``, ``num_envs`` episode starts an iteration; ``rollout``, every global step of
+    one episode of every world, the policy's decoding choosing the goals (DAgger's states)."""
+    imitation_margin: float = 4.0
+    """The margin per agent sent past the teacher's longest trip (squared nats of the decoding's cost)."""
 
     def __post_init__(self):
-        for name, allowed in (("imitate", TEACHERS), ("imitation_loss", IMITATION_LOSSES),
-                              ("imitation_states", IMITATION_STATES), ("imitation_credit", IMITATION_CREDITS)):
+        for name, allowed in (("imitate", TEACHERS), ("imitation_states", IMITATION_STATES)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name}: expected one of {list(allowed)}, got {getattr(self, name)!r}")
-        _check(self, "imitation_epochs", 1, integer=True)
         _check(self, "imitation_margin", 0.0)
 
 
@@ -259,7 +236,7 @@ class TrainConfig:
     run: RunConfig = field(default_factory=RunConfig)
     """Schedule (:class:`RunConfig`)."""
     imitation: ImitationConfig = field(default_factory=ImitationConfig)
-    """A supervised stage for the Goal Matcher (:class:`ImitationConfig`); none by default."""
+    """Imitation for the Goal Matcher (:class:`ImitationConfig`); none by default."""
 
     @classmethod
     def keys(cls) -> dict[str, str]:

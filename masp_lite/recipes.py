@@ -142,21 +142,29 @@ MASP = Recipe("masp", "masp", (
 ), "the shipped MASP on the particle presets (masp_lite/weights/mpe-*.pt); mpe-20to10 and mpe-50to20 run "
    "the mpe-20 weights zero-shot")
 
-IMITATION = {"imitate": "h-bottleneck", "train_executor": False, "imitation_loss": "decoding",
-             "imitation_margin": 4.0, "imitation_states": "spawn", "eval_every": 0, "eval_episodes": 32,
-             "checkpoint_every": 25}
-"""The imitation stage of ``masp-minmax`` (ours: :mod:`masp_lite.algos.imitation`): h-bottleneck's min-max
-assignment on fresh episode starts, the Goal Matcher alone."""
+
+IMITATION = {"imitate": "h-bottleneck", "train_executor": False, "imitation_margin": 4.0, "eval_every": 0,
+             "eval_episodes": 32}
+"""``masp-minmax``'s imitation (ours, :mod:`masp_lite.algos.imitation`): the Goal Matcher alone taught to keep
+h-bottleneck's longest trip in the evaluation's decoding (the margin loss; the likelihoods of the draw did not
+move it, research log 2026-12-07)."""
 
 
-def _minmax_chain(preset: str, start: str, imitation: int, fine_tune: tuple) -> tuple:
-    """``masp-minmax`` on one preset: imitation of h-bottleneck from MASP's weights (its stage ``start``),
-    then MAPPO on R_GM with the Goal Matcher alone (the paper's training, at a fine-tune's step size)."""
+def _minmax_chain(preset: str, start: str, fine_tune: tuple) -> tuple:
+    """``masp-minmax`` on one preset, from MASP's weights (its stage ``start``): imitation on episode starts
+    (1500 x 32 layouts), then on the states the policy itself meets (DAgger, 30 episodes x 16 worlds: a Goal
+    Matcher taught on starts alone re-decides badly mid-episode), then MAPPO on R_GM with the Goal Matcher
+    alone (the paper's training at a fine-tune's step size; ``fine_tune``: iterations, worlds, evaluation
+    period). The imitation budgets are the ones measured at N = 50. The fine-tune is short and evaluated
+    often: 20 iterations of it at N = 50 took back the imitation's gain (research log, 2026-12-07)."""
     iterations, worlds, every = fine_tune
-    return (Stage(f"imitate-{preset}", preset, imitation, 32, IMITATION, start),
+    return (Stage(f"imitate-{preset}", preset, 1500, 32, {**IMITATION, "imitation_states": "spawn",
+                                                         "checkpoint_every": 50}, start),
+            Stage(f"dagger-{preset}", preset, 30, 16, {**IMITATION, "imitation_states": "rollout",
+                                                      "checkpoint_every": 5}, f"imitate-{preset}"),
             Stage(f"minmax-{preset}", preset, iterations, worlds,
                   {"train_executor": False, "lr": 2e-4, "entropy_coef": 0.005, "gm_ppo_epochs": 4,
-                   "gm_reference": "squared", **EVAL_SETTINGS, "eval_every": every}, f"imitate-{preset}",
+                   "gm_reference": "squared", **EVAL_SETTINGS, "eval_every": every}, f"dagger-{preset}",
                   keep=f"masp-minmax/{preset}"))
 
 
@@ -164,9 +172,9 @@ MASP_MINMAX = Recipe("masp-minmax", "masp-minmax", (
     # MASP's own stages (not kept here: the plan trains them once, with masp's); the executor is MASP's
     *(replace(s, keep=None) for s in MASP.chain("mpe-20")),
     *(replace(s, keep=None) for s in MASP.chain("mpe-5")),
-    *_minmax_chain("mpe-20", "mpe-20", 600, (150, 32, 25)),
-    *_minmax_chain("mpe-50", "mpe-20", 600, (200, 16, 25)),
-    *_minmax_chain("mpe-5", "mpe-5", 600, (300, 64, 50)),
+    *_minmax_chain("mpe-50", "mpe-20", (50, 16, 10)),
+    *_minmax_chain("mpe-20", "mpe-20", (50, 32, 10)),
+    *_minmax_chain("mpe-5", "mpe-5", (100, 64, 25)),
 ), "beyond the paper: MASP's Goal Matcher taught h-bottleneck's min-max assignment, then MAPPO on R_GM, the "
    "executor MASP's; until MASP is retrained, run an imitate-* stage with --init masp_lite/weights/mpe-20.pt "
    "(mpe-5.pt for mpe-5)")

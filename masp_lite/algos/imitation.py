@@ -1,38 +1,41 @@
-"""The Goal Matcher taught an assignment by imitation: the first stage of ``masp-minmax`` (ours, not the paper's).
+"""The Goal Matcher taught an assignment by imitation: the first stages of ``masp-minmax`` (ours, not the paper's).
 
 **Why.** Steps waits for the *last* landmark, so the min-max ("bottleneck") assignment re-solved every
 global step (``h-bottleneck``: :func:`~masp_lite.algos.team.bottleneck` and straight flight) needs fewer
 Steps than MASP at N = 50, and MAPPO on R_GM (eq. 1) with the training draw does not bring the Goal Matcher
 near it within CPU-hours (research log, 2026-12-03): R_GM's reference minimises a total, and a min-max
 reference gives every agent but the one on the longest trip the same reward. The learned assignment
-methods that scale to hundreds of agents start from a solver's assignments and then fine-tune by RL; this
-stage is the first half of that recipe, with the min-max solver as the teacher. The MAPPO stage that
-follows (:class:`~masp_lite.algos.masp_trainer.MASPTrainer`, Goal Matcher alone) is the paper's.
+methods that scale to hundreds of agents start from a solver's assignments and then fine-tune by RL; these
+stages are the first half of that recipe, with the min-max solver as the teacher (:data:`TEACHERS`, chosen
+by ``ImitationConfig.imitate``). The MAPPO stage that may follow is the paper's
+(:class:`~masp_lite.algos.masp_trainer.MASPTrainer`, Goal Matcher alone).
 
-**What.** On layouts the world generates, the teacher (:data:`TEACHERS`, chosen by
-``ImitationConfig.imitate``) assigns goals; the Goal Matcher's matching scores are trained to make that
-assignment likely (:func:`imitation_loss`, by ``imitation_loss``):
+**What is learned**, on layouts the world generates, with the teacher's goals ``g*`` and longest trip ``t*``:
+a structured margin on the evaluation's decoding (:func:`~masp_lite.nets.decoding.joint_argmax`, the
+assignment of least ``C(s) = sum_k (-log S_k(s_k))^2``), :func:`decoding_margin_loss`. It is 0 exactly
+when every assignment that sends an agent farther than ``t*`` costs at least ``imitation_margin`` per such
+agent more than the cheapest one that does not: the decoding then keeps the teacher's longest trip. It leaves
+the choice among the many assignments with that longest trip to the scores, which is why it is learnable: on
+validation layouts the Hungarian assignment on distances to the 16th power keeps the min-max trip within
+0.2 % yet gives only 44 % of the agents ``bottleneck``'s goal (research log, 2026-12-07).
 
-* ``sequential`` (default): the negative log-likelihood of the teacher's goals under the draw the Goal
-  Matcher acts by in training (:mod:`masp_lite.nets.goal_draw`): agents in a random order, each choosing
-  from its categorical restricted to the goals that agents earlier in the order have not taken,
+Tried and not kept (research log, 2026-12-07; :func:`draw_nll` stays for research scripts, which change
+:meth:`ImitationTrainer.loss` in a subclass): the negative log-likelihood of the teacher's goals under the
+draw the Goal Matcher acts by in training (:mod:`masp_lite.nets.goal_draw`: agents in a random order, each
+choosing from its categorical restricted to the goals earlier agents have not taken), ``L = -1/|K| sum_k log
+softmax(z_k over the goals not taken before k)[g*_k]`` (:func:`~masp_lite.nets.goal_draw.conditional_logits`
+with the teacher's goals standing in for the picks, one fresh order per layout and step), with every goal
+within ``t*`` counted as right (:func:`within_longest_trip`) or not. Neither moved the decoding towards the
+min-max trip at N = 50.
 
-      L = -1/|K| * sum_k log softmax(z_k over the goals not taken before k)[g*_k],
-
-  :func:`~masp_lite.nets.goal_draw.conditional_logits` with the teacher's goals standing in for the
-  picks, one fresh order per layout and step (so the loss averages over orders as the draw does). Its
-  minimum, 0, is the draw returning the teacher's assignment in every order; the MAPPO stage after it
-  optimises the same draw, so it starts from the very policy imitation left (the same log-probabilities);
-* ``independent``: every agent's own categorical over all allowed goals (the same loss with every agent
-  drawing first): a plain cross-entropy, stricter for agents late in an order.
-
-The layouts (``imitation_states``): ``spawn``, a fresh episode start in every world each iteration (no step
-simulated: cheap, and the first assignment carries most of the gap to a reference, research log
-2026-12-03); ``rollout``, every global step of one episode per world with the executor flying to the Goal
-Matcher's own draws (:meth:`MASPTrainer.collect`): DAgger's states, mid-episode (agents moving, landmarks
-covered). Agents the teacher leaves without a goal (more alive agents than allowed goals) and dropped agents
-are left out of the loss and block no goal. Only the Goal Matcher's actor learns (its optimizer, MAPPO's
-step size and gradient clip); the executor, both critics and their value normalisations stay as they were.
+**On which layouts** (``imitation_states``): ``spawn``, a fresh episode start in every world each iteration
+(no step simulated: cheap); ``rollout``, every global step of one episode per world, the executor flying to
+the goals the policy's own decoding picks (:meth:`ImitationTrainer.draw_goals`): DAgger's states, with agents
+moving, on their landmarks and landmarks covered, which episode starts never show (a Goal Matcher taught on
+starts alone re-decides badly mid-episode). Agents the teacher leaves without a goal (more alive agents than
+allowed goals) and dropped agents are left out and block no goal. Only the Goal Matcher's actor learns (its
+optimizer, MAPPO's step size and gradient clip); the executor, both critics and their value normalisations
+stay as they were.
 """
 from __future__ import annotations
 
@@ -40,12 +43,13 @@ import numpy as np
 import torch
 from scipy.optimize import linear_sum_assignment
 
+from ..nets.decoding import joint_argmax
 from ..nets.goal_draw import MASKED, allowed_goals, conditional_logits
 from .mappo import NonFiniteError
 from .masp_trainer import MASPTrainer
 from .team import bottleneck
 
-__all__ = ["TEACHERS", "teacher_goals", "random_rank", "within_longest_trip", "imitation_loss", "decoding_margin_loss",
+__all__ = ["TEACHERS", "teacher_goals", "random_rank", "within_longest_trip", "draw_nll", "decoding_margin_loss",
            "ImitationTrainer"]
 
 TEACHERS = {"h-bottleneck": bottleneck}
@@ -78,7 +82,7 @@ def within_longest_trip(obs: dict, targets: torch.Tensor, goal_mask: torch.Tenso
     return ((d <= longest[:, None, None]) & allowed_goals(goal_mask, d).unsqueeze(1)) | own
 
 
-def imitation_loss(logits: torch.Tensor, targets: torch.Tensor, alive: torch.Tensor,
+def draw_nll(logits: torch.Tensor, targets: torch.Tensor, alive: torch.Tensor,
                    rank: torch.Tensor | None = None, goal_mask: torch.Tensor | None = None,
                    accept: torch.Tensor | None = None):
     """``(loss, entropy)``: the mean negative log-likelihood, over the labelled agents, that each picks a goal
@@ -141,7 +145,7 @@ def decoding_margin_loss(logits: torch.Tensor, over: torch.Tensor, alive: torch.
 
 
 class ImitationTrainer(MASPTrainer):
-    """A run's iterations as imitation: layouts, the teacher's goals, gradient steps on :func:`imitation_loss`.
+    """A run's iterations as imitation: layouts, the teacher's goals, gradient steps on :meth:`loss`.
 
     :func:`masp_lite.training.train` uses it when ``imitate`` is set (``train --set imitate=h-bottleneck``);
     everything else of a run (checkpoints, exact resume, periodic evaluation, the manifest) is the same. A row
@@ -160,13 +164,20 @@ class ImitationTrainer(MASPTrainer):
             raise ValueError("imitate: the imitation trains the Goal Matcher alone; expected --set "
                              "train_executor=false (masp-minmax's own setting)")
 
+    @staticmethod
+    def draw_goals(logits, alive, generator):
+        """The goals of a ``rollout``: the policy's own decoding (:func:`~masp_lite.nets.decoding.joint_argmax`),
+        so the layouts are those the policy meets when it acts (DAgger's); no log-probability or order is used."""
+        goals = joint_argmax(logits, alive)
+        return goals, torch.zeros(goals.shape), torch.zeros_like(goals)
+
     def layouts(self) -> tuple[dict, dict]:
         """``(obs, stats)``: this iteration's layouts as one observation batch (S, ...), and the training
         rollout's SR, Steps and CR (NaN for ``spawn``: nothing is simulated)."""
         if self.cfg.imitation.imitation_states == "spawn":
             obs = self.world.reset()
             return {k: obs[k] for k in self.obs_keys}, dict.fromkeys(("sr", "steps", "cr"), float("nan"))
-        gm_data, _, stats = self.collect()  # every global step's observation, stored with the draw's picks
+        gm_data, _, stats = self.collect()  # every global step's observation (the goals: the policy's decoding)
         return {k: gm_data[k].flatten(0, 1) for k in self.obs_keys}, stats
 
     def goal_mask(self, obs: dict) -> torch.Tensor | None:
@@ -176,17 +187,14 @@ class ImitationTrainer(MASPTrainer):
         return ~obs["reached"] | obs["reached"].all(-1, keepdim=True)
 
     def loss(self, logits, obs: dict, targets, goal_mask):
-        """``(loss, entropy)`` of one batch of layouts by ``imitation_loss`` and ``imitation_credit``."""
-        im, alive = self.cfg.imitation, obs["alive"]
-        if im.imitation_loss == "decoding":
-            over = ~within_longest_trip(obs, targets, goal_mask)
-            return decoding_margin_loss(logits, over, alive & (targets >= 0), goal_mask, im.imitation_margin)
-        rank = random_rank(*targets.shape, self.generator) if im.imitation_loss == "sequential" else None
-        accept = within_longest_trip(obs, targets, goal_mask) if im.imitation_credit == "within" else None
-        return imitation_loss(logits, targets, alive, rank, goal_mask, accept)
+        """``(loss, entropy)`` of one batch of layouts: :func:`decoding_margin_loss`, the pairs past the
+        teacher's longest trip marked by :func:`within_longest_trip`."""
+        over = ~within_longest_trip(obs, targets, goal_mask)
+        return decoding_margin_loss(logits, over, obs["alive"] & (targets >= 0), goal_mask,
+                                    self.cfg.imitation.imitation_margin)
 
     def iteration(self) -> dict[str, float]:
-        """One iteration: layouts, the teacher's goals, ``imitation_epochs`` passes in batches of ``num_envs``."""
+        """One iteration: layouts, the teacher's goals, one pass over them in batches of ``num_envs`` layouts."""
         cfg, nets, g = self.cfg, self.nets, self.generator
         obs, stats = self.layouts()
         with torch.no_grad():
@@ -194,23 +202,21 @@ class ImitationTrainer(MASPTrainer):
             targets = teacher_goals(cfg.imitation.imitate, obs, mask)
         S, N = targets.shape
         losses, entropies = [], []
-        for _ in range(cfg.imitation.imitation_epochs):
-            order = torch.randperm(S, generator=g)
-            for rows in order.split(cfg.run.num_envs):
-                mb = {k: v[rows] for k, v in obs.items()}
-                mb_mask = None if mask is None else mask[rows]
-                logits = nets.gm_logits(mb, self.scale, mb_mask)
-                loss, entropy = self.loss(logits, mb, targets[rows], mb_mask)
-                if not torch.isfinite(loss):
-                    raise NonFiniteError(f"the imitation loss is {loss.item()}")
-                self.gm_opt.zero_grad()
-                loss.backward()
-                norm = torch.nn.utils.clip_grad_norm_(nets.gm.parameters(), cfg.ppo.max_grad_norm)
-                if not torch.isfinite(norm):
-                    raise NonFiniteError(f"the Goal Matcher's gradient norm is {norm.item()}")
-                self.gm_opt.step()
-                losses.append(loss.item())
-                entropies.append(entropy.item())
+        for rows in torch.randperm(S, generator=g).split(cfg.run.num_envs):
+            mb = {k: v[rows] for k, v in obs.items()}
+            mb_mask = None if mask is None else mask[rows]
+            logits = nets.gm_logits(mb, self.scale, mb_mask)
+            loss, entropy = self.loss(logits, mb, targets[rows], mb_mask)
+            if not torch.isfinite(loss):
+                raise NonFiniteError(f"the imitation loss is {loss.item()}")
+            self.gm_opt.zero_grad()
+            loss.backward()
+            norm = torch.nn.utils.clip_grad_norm_(nets.gm.parameters(), cfg.ppo.max_grad_norm)
+            if not torch.isfinite(norm):
+                raise NonFiniteError(f"the Goal Matcher's gradient norm is {norm.item()}")
+            self.gm_opt.step()
+            losses.append(loss.item())
+            entropies.append(entropy.item())
         self.iterations += 1
         nan = float("nan")
         row = {"iteration": self.iterations, "env_steps": self.env_steps,
