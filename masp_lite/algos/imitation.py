@@ -72,8 +72,7 @@ def random_rank(batch: int, agents: int, generator: torch.Generator) -> torch.Te
 
 def within_longest_trip(obs: dict, targets: torch.Tensor, goal_mask: torch.Tensor | None = None) -> torch.Tensor:
     """(B, N, M) bool: the allowed goals no farther from each agent than the teacher's longest trip in its layout,
-    and the teacher's own goal (the ``within`` credit: any of them keeps the teacher's longest trip, when the
-    others still find goals within it)."""
+    and the teacher's own goal: the pairs an assignment as short as the teacher's at its longest may use."""
     d = torch.cdist(obs["agent_pos"], obs["landmark_pos"])
     labelled = obs["alive"] & (targets >= 0)
     trip = torch.gather(d, -1, targets.clamp(min=0).unsqueeze(-1)).squeeze(-1)
@@ -82,18 +81,18 @@ def within_longest_trip(obs: dict, targets: torch.Tensor, goal_mask: torch.Tenso
     return ((d <= longest[:, None, None]) & allowed_goals(goal_mask, d).unsqueeze(1)) | own
 
 
-def draw_nll(logits: torch.Tensor, targets: torch.Tensor, alive: torch.Tensor,
-                   rank: torch.Tensor | None = None, goal_mask: torch.Tensor | None = None,
-                   accept: torch.Tensor | None = None):
+def draw_nll(logits: torch.Tensor, targets: torch.Tensor, alive: torch.Tensor, rank: torch.Tensor | None = None,
+             goal_mask: torch.Tensor | None = None, accept: torch.Tensor | None = None):
     """``(loss, entropy)``: the mean negative log-likelihood, over the labelled agents, that each picks a goal
     counted as right, and the mean entropy of the categoricals it reads.
 
     ``logits`` (B, N, M) the Goal Matcher's; ``targets`` (B, N) the teacher's goals (``-1``: none); ``alive``
-    (B, N); ``rank`` (B, N) a drawing order (:func:`random_rank`) for the ``sequential`` loss, ``None`` for the
-    ``independent`` one; ``goal_mask`` (B, M) the goals that may be chosen (``None``: all); ``accept`` (B, N, M)
-    bool the goals counted as right for each agent (``None``: the teacher's goal alone; it must hold it)."""
+    (B, N); ``rank`` (B, N) the draw's order (:func:`random_rank`; ``None``: every agent's own categorical over
+    all allowed goals, a plain cross-entropy); ``goal_mask`` (B, M) the goals that may be chosen (``None``: all);
+    ``accept`` (B, N, M) bool the goals counted as right for each agent (``None``: the teacher's goal alone; it
+    must hold it)."""
     if targets.shape != logits.shape[:2] or alive.shape != targets.shape:
-        raise ValueError(f"imitation_loss: expected targets and alive of shape {tuple(logits.shape[:2])}, got "
+        raise ValueError(f"draw_nll: expected targets and alive of shape {tuple(logits.shape[:2])}, got "
                          f"{tuple(targets.shape)} and {tuple(alive.shape)}")
     labelled = alive & (targets >= 0)
     if rank is None:
