@@ -94,7 +94,7 @@ METHODS: dict[str, dict[str, dict]] = {
     # beyond the paper: MASP's networks and executor, its Goal Matcher taught h-bottleneck's min-max assignment by
     # imitation, then fine-tuned alone by MAPPO (masp_lite.algos.imitation; the recipe masp-minmax)
     "masp-minmax": {"particle": {"policy": "masp:MASPPolicy", "nets": _GRAPH, "group": "beyond",
-                                 "weights": _TEAM_SIZES}},
+                                 "weights": ()}},  # none packaged yet (its recipe has not run): checkpoint=PATH
     # the paper's ablations (trained on mpe-20)
     "masp-rg": {"particle": _learned("ablation", "random", "graph", ("mpe-20",))},
     "gm-mlp": {"particle": _learned("ablation", "mlp", "graph", ("mpe-20",))},
