@@ -7,8 +7,9 @@
   the shipped weights until 2026-12 were trained with ``gm_reference="squared"`` (then
   spelt ``gm_reference_power=2``);
 * :class:`RunConfig` — the schedule: worlds, updates, stages, evaluation, checkpoints;
-* :class:`TrainConfig` — the four together. Its field names are unique across the
-  four, so ``--set lr=2e-4`` needs no prefix and a manifest stores one flat dict.
+* :class:`ImitationConfig` — imitation for the Goal Matcher in place of MAPPO (``masp-minmax``'s first stages);
+* :class:`TrainConfig` — the parts together. Its field names are unique across the
+  parts, so ``--set lr=2e-4`` needs no prefix and a manifest stores one flat dict.
 
 Every command's ``--set KEY=VALUE`` converts a value by the type of the field it sets
 (:func:`masp_lite.parsing.parse_sets`) — the annotations below are real types (no
@@ -20,7 +21,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "TrainConfig"]
+__all__ = ["NetConfig", "PPOConfig", "RewardConfig", "RunConfig", "ImitationConfig", "TrainConfig"]
 
 
 GM_REFERENCES = ("distance", "squared")
@@ -29,6 +30,9 @@ GOAL_MATCHERS = ("graph", "mlp", "random", "hungarian", "none")
 EXECUTORS = ("graph", "mlp", "nearest", "subgraph", "attention", "radius")
 ACTIONS = ("discrete", "throttle", "velocity")
 """The settings of :attr:`NetConfig.goal_matcher`, :attr:`NetConfig.executor` and :attr:`NetConfig.action`."""
+TEACHERS = ("none", "h-bottleneck")
+IMITATION_STATES = ("spawn", "rollout")
+"""The settings of :attr:`ImitationConfig.imitate` and :attr:`ImitationConfig.imitation_states`."""
 
 
 def _check(obj, name, low=None, high=None, integer=False):
@@ -197,7 +201,26 @@ class RunConfig:
             raise ValueError(f"train_executor: expected true or false, got {self.train_executor!r}")
 
 
-_PARTS = {"net": NetConfig, "ppo": PPOConfig, "reward": RewardConfig, "run": RunConfig}
+@dataclass
+class ImitationConfig:
+    """The Goal Matcher taught a teacher's assignment instead of MAPPO (ours): :mod:`masp_lite.algos.imitation`."""
+
+    imitate: str = "none"
+    """The teacher: ``none`` (MAPPO, the paper's training) or ``h-bottleneck``'s min-max assignment."""
+    imitation_states: str = "spawn"
+    """Its layouts: ``spawn``, ``num_envs`` episode starts an iteration; ``rollout``, every global step of
+    one episode of every world, the policy's decoding choosing the goals (DAgger's states)."""
+    imitation_margin: float = 4.0
+    """The margin per agent sent past the teacher's longest trip (squared nats of the decoding's cost)."""
+
+    def __post_init__(self):
+        for name, allowed in (("imitate", TEACHERS), ("imitation_states", IMITATION_STATES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name}: expected one of {list(allowed)}, got {getattr(self, name)!r}")
+        _check(self, "imitation_margin", 0.0)
+
+
+_PARTS = {"net": NetConfig, "ppo": PPOConfig, "reward": RewardConfig, "run": RunConfig, "imitation": ImitationConfig}
 
 
 @dataclass
@@ -212,6 +235,8 @@ class TrainConfig:
     """Rewards (:class:`RewardConfig`)."""
     run: RunConfig = field(default_factory=RunConfig)
     """Schedule (:class:`RunConfig`)."""
+    imitation: ImitationConfig = field(default_factory=ImitationConfig)
+    """Imitation for the Goal Matcher (:class:`ImitationConfig`); none by default."""
 
     @classmethod
     def keys(cls) -> dict[str, str]:

@@ -14,7 +14,7 @@ __all__ = ["parse_value", "parse_sets", "field_types"]
 
 def field_types(cls) -> dict[str, object]:
     """``{field name: type}`` of a dataclass; a field that is itself a dataclass gives its own fields instead
-    (:class:`~masp_lite.config.TrainConfig`'s four parts: ``lr``, not ``ppo``, as ``--set`` names them)."""
+    (:class:`~masp_lite.config.TrainConfig`'s parts: ``lr``, not ``ppo``, as ``--set`` names them)."""
     hints = typing.get_type_hints(cls)
     out = {}
     for f in dataclasses.fields(cls):

@@ -19,14 +19,14 @@ curves, wall-clock here).
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .files import read_bounded
 from .training import method_config, train
 
 __all__ = ["Stage", "Recipe", "RECIPES", "FROM_SCRATCH", "get_recipe", "recipe_names", "stage_config",
-           "run_recipe", "EVAL_SETTINGS"]
+           "run_recipe", "EVAL_SETTINGS", "IMITATION"]
 
 FROM_SCRATCH = {"ppo_epochs": 5, "collision_coef": 2.0}
 """The one-stage recipe from random networks (``faithful``, the ablations, the particle RL baselines,
@@ -144,6 +144,44 @@ MASP = Recipe("masp", "masp", (
    "run the mpe-20 weights zero-shot")
 
 
+
+IMITATION = {"imitate": "h-bottleneck", "train_executor": False, "imitation_margin": 4.0, "eval_every": 0,
+             "eval_episodes": 32}
+"""``masp-minmax``'s imitation (ours, :mod:`masp_lite.algos.imitation`): the Goal Matcher alone taught to keep
+h-bottleneck's longest trip in the evaluation's decoding (the margin loss; the likelihoods of the draw did not
+move it, research log 2026-12-07)."""
+
+
+def _minmax_chain(preset: str, start: str, fine_tune: tuple) -> tuple:
+    """``masp-minmax`` on one preset, from MASP's weights (its stage ``start``): imitation on episode starts
+    (1500 x 32 layouts), then on the states the policy itself meets (DAgger, 30 episodes x 16 worlds: a Goal
+    Matcher taught on starts alone re-decides badly mid-episode), then MAPPO on R_GM with the Goal Matcher
+    alone (the paper's training at a fine-tune's step size; ``fine_tune``: iterations, worlds, evaluation
+    period). The imitation budgets are the ones measured at N = 50. The fine-tune is short and evaluated
+    often: 20 iterations of it at N = 50 took back the imitation's gain (research log, 2026-12-07)."""
+    iterations, worlds, every = fine_tune
+    return (Stage(f"imitate-{preset}", preset, 1500, 32, {**IMITATION, "imitation_states": "spawn",
+                                                         "checkpoint_every": 50}, start),
+            Stage(f"dagger-{preset}", preset, 30, 16, {**IMITATION, "imitation_states": "rollout",
+                                                      "checkpoint_every": 5}, f"imitate-{preset}"),
+            Stage(f"minmax-{preset}", preset, iterations, worlds,
+                  {"train_executor": False, "lr": 2e-4, "entropy_coef": 0.005, "gm_ppo_epochs": 4,
+                   "gm_reference": "squared", **EVAL_SETTINGS, "eval_every": every}, f"dagger-{preset}",
+                  keep=f"masp-minmax/{preset}"))
+
+
+MASP_MINMAX = Recipe("masp-minmax", "masp-minmax", (
+    # MASP's own stages (not kept here: the plan trains them once, with masp's); the executor is MASP's
+    *(replace(s, keep=None) for s in MASP.chain("mpe-20-both")),
+    *(replace(s, keep=None) for s in MASP.chain("mpe-5")),
+    *_minmax_chain("mpe-50", "mpe-20-both", (50, 16, 10)),
+    *_minmax_chain("mpe-20", "mpe-20-both", (50, 32, 10)),
+    *_minmax_chain("mpe-5", "mpe-5", (100, 64, 25)),
+), "beyond the paper: MASP's Goal Matcher taught h-bottleneck's min-max assignment, then MAPPO on R_GM, the "
+   "executor MASP's; until MASP is retrained, run an imitate-* stage with --init masp_lite/weights/mpe-20.pt "
+   "(mpe-5.pt for mpe-5)")
+
+
 def _drone_masp(name: str, method: str, executor_iterations: int, executor_eval: int, keep: str, about: str):
     """MASP on drones: the executor first, flying to Hungarian goals (ours: a curriculum; the paper trains both
     levels together), then the Goal Matcher alone; drone-20 fine-tunes drone-5's executor the same way."""
@@ -165,7 +203,7 @@ MASP_VELOCITY = _drone_masp("masp-velocity", "masp-velocity", 300, 10, "masp-vel
                             "MASP whose executor asks the geometric controller for a velocity (ours, not the paper's)")
 
 RECIPES: dict[str, Recipe] = {r.name: r for r in (
-    MASP, MASP_DRONE, MASP_VELOCITY,
+    MASP, MASP_DRONE, MASP_VELOCITY, MASP_MINMAX,
     _one_stage("faithful", "masp", {}, "MASP with eq. 1 as written, mpe-20 from random networks"),
     # the paper's ablations, each the faithful recipe with one setting changed
     _one_stage("masp-rg", "masp-rg", {}, "MASP w. RG: distinct random goals"),

@@ -346,8 +346,16 @@ def _bar_text(row: dict, rows: list[dict]) -> str:
     return text
 
 
-def trainer_class(kind: str) -> type[MASPTrainer]:
-    """The trainer of a world kind: :class:`MASPTrainer`, or for drones its subclass (MuJoCo only then)."""
+def trainer_class(kind: str, cfg: TrainConfig | None = None) -> type[MASPTrainer]:
+    """The trainer of a world kind: :class:`MASPTrainer`, or for drones its subclass (MuJoCo only then); with
+    ``cfg``'s ``imitate`` set, the imitation stage's (:class:`~masp_lite.algos.imitation.ImitationTrainer`,
+    particle worlds)."""
+    if cfg is not None and cfg.imitation.imitate != "none":
+        if kind != "particle":
+            raise ValueError(f"imitate: the imitation stage is for particle worlds; this scenario is a {kind} "
+                             "world (expected --set imitate=none)")
+        from .algos.imitation import ImitationTrainer
+        return ImitationTrainer
     if kind == "drone":
         from .algos.drone_trainer import DroneMASPTrainer
         return DroneMASPTrainer
@@ -377,7 +385,7 @@ def train(scenario: str | Scenario, cfg: TrainConfig, out, seed: int = 0, resume
     out, overrides = Path(out), dict(overrides or {})
     _check_start(out, resume)
     sc = get_scenario(scenario, **overrides)
-    cls = _trainer_type(sc.kind, trainer_type)
+    cls = _trainer_type(sc.kind, trainer_type, cfg)
     check_memory(sc.num_agents, cfg.run.num_envs, "--set num_envs=")  # before any world or network is built
     given = command or f"python -m masp_lite train --method {method} --scenario {sc.name} --seed {seed}"
     run = _Run(out, cls(sc, cfg, seed=seed), method, int(seed), overrides, command=given, last_command=given,
@@ -440,9 +448,9 @@ def _check_start(out: Path, resume: bool) -> None:
     _check_run_files(out)
 
 
-def _trainer_type(kind: str, trainer_type) -> type[MASPTrainer]:
+def _trainer_type(kind: str, trainer_type, cfg: TrainConfig) -> type[MASPTrainer]:
     """The world kind's trainer (:func:`trainer_class`), or ``trainer_type`` when it is a subclass of it."""
-    base = trainer_class(kind)
+    base = trainer_class(kind, cfg)
     if trainer_type is not None and not (isinstance(trainer_type, type) and issubclass(trainer_type, base)):
         raise ValueError(f"trainer_type: expected a subclass of {base.__name__} (the {kind} trainer), "
                          f"got {trainer_type!r}")

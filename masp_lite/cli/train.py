@@ -49,8 +49,8 @@ EXAMPLES = [
 
 def add_arguments(parser) -> None:
     parser.add_argument("--method", default=None, help="learned method to train: masp, an ablation (masp-rg, gm-mlp, "
-                        "cae-mlp) or a baseline (h-mappo, htamp, mage-x, mappo, darl1n); default: the one the "
-                        "--set values make, masp without any")
+                        "cae-mlp), a baseline (h-mappo, htamp, mage-x, mappo, darl1n) or masp-minmax (beyond the "
+                        "paper); default: the one the --set values make, masp without any")
     parser.add_argument("--scenario", default=None, help="scenario, e.g. mpe-20 (not with --recipe)")
     parser.add_argument("--recipe", default=None,
                         help=f"train a recipe (masp_lite.recipes): {', '.join(recipe_names())}")

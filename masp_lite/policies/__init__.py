@@ -74,7 +74,8 @@ def _baseline(goal_matcher: str, executor: str, train: dict | None = None) -> di
 #: tables), ``train`` (further training settings) and
 #: ``weights``: ``"shipped"`` (one file per preset, ``masp_lite/weights/manifest.json``) or the presets
 #: whose seed-0 weights ship as package data (``masp_lite/weights/methods/``, :func:`masp_lite.weights.
-#: method_checkpoint`). A method missing a world kind refuses it, naming the kinds it has.
+#: method_checkpoint`; until they do, ``checkpoint=PATH`` names them). A method missing a world kind refuses it,
+#: naming the kinds it has. ``group`` ``beyond``: a method past the paper's (``masp-minmax``).
 METHODS: dict[str, dict[str, dict]] = {
     "random": {"particle": {"policy": "reference:RandomPolicy"}, "drone": {"policy": "reference:RandomPolicy"}},
     "h-greedy": {"particle": {"policy": "reference:HungarianGreedy"},
@@ -90,6 +91,10 @@ METHODS: dict[str, dict[str, dict]] = {
                        "weights": "shipped"}},
     "masp-velocity": {"drone": {"policy": "drone_masp:DroneMASPPolicy",
                                 "nets": {"executor": "graph", "action": "velocity"}, "weights": _DRONE_SIZES}},
+    # beyond the paper: MASP's networks and executor, its Goal Matcher taught h-bottleneck's min-max assignment by
+    # imitation, then fine-tuned alone by MAPPO (masp_lite.algos.imitation; the recipe masp-minmax)
+    "masp-minmax": {"particle": {"policy": "masp:MASPPolicy", "nets": _GRAPH, "group": "beyond",
+                                 "weights": ()}},  # none packaged yet (its recipe has not run): checkpoint=PATH
     # the paper's ablations (trained on mpe-20)
     "masp-rg": {"particle": _learned("ablation", "random", "graph", ("mpe-20",))},
     "gm-mlp": {"particle": _learned("ablation", "mlp", "graph", ("mpe-20",))},
