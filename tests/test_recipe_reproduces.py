@@ -21,7 +21,7 @@ def _rows(path, n):
 def test_the_first_rows_of_the_shipped_mpe20_history_are_made_again(tmp_path):
     history = json.loads(HISTORY.read_text())
     recipe = get_recipe("masp")
-    first = recipe.chain("mpe-20")[0]
+    first = recipe.chain("mpe-20-both")[0]
     kept = history["stages"][0]
     assert kept["scenario"] == first.scenario and kept["training"]["seed"] == 0 and kept["training"]["init"] is None
     assert kept["training"]["config"]["updates"] == first.iterations  # the kept run is this stage, from random networks
