@@ -46,7 +46,7 @@ def test_evaluate_help_lists_every_method_and_the_defaults(capsys):
     with pytest.raises(SystemExit):
         main(["evaluate", "--help"])
     text = " ".join(capsys.readouterr().out.split())
-    assert all(m in text for m in method_names()) and len(method_names()) == 17
+    assert all(m in text for m in method_names()) and len(method_names()) == 18
     assert "(default 0 1 2" in text and "(default markdown)" in text and "mpe-50to20" in text
 
 

@@ -448,7 +448,7 @@ def test_a_training_run_that_cannot_fit_in_memory_is_refused_with_the_estimate(t
     evaluation = importlib.import_module("masp_lite.evaluation.evaluate")  # the module, not the function
     monkeypatch.setattr(evaluation, "_available_bytes", lambda: 2 * 2**30)  # a machine with 2 GiB free
     out = tmp_path / "run"
-    with pytest.raises(ValueError, match=r"20 agents in 5000 worlds side by side need about 2.3 GiB .* more than "
+    with pytest.raises(ValueError, match=r"20 agents in 50000 worlds side by side need about 3.0 GiB .* more than "
                                          r"the 2.0 GiB available; pass num_envs=\d+ \(--set num_envs=\d+\)"):
-        train("mpe-20", _cfg(num_envs=5000), out, progress=False)
+        train("mpe-20", _cfg(num_envs=50_000), out, progress=False)
     assert not out.exists()
