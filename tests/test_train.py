@@ -381,14 +381,15 @@ def test_training_measures_sr_and_steps_as_evaluate_does(scenario):
     from masp_lite.evaluation import collision_rate, rollout, steps, success_rate
 
     nets, _ = load_weights(None, scenario=scenario)
-    trainer = MASPTrainer(scenario, TrainConfig.from_flat({**vars(nets.config), "num_envs": 16}), seed=3)
+    # seed 7: the shipped mpe-20 weights, sampling, finish some shrinking-team episode within the horizon there
+    trainer = MASPTrainer(scenario, TrainConfig.from_flat({**vars(nets.config), "num_envs": 16}), seed=7)
     trainer.nets.load_state_dict(nets.state_dict())
     commands, step = [], trainer.world.step
     trainer.world.step = lambda command: commands.append(command.clone()) or step(command)
     _, _, stats = trainer.collect()
-    log, _ = rollout(make(scenario, num_envs=16, seed=3), _Replay(commands), episodes=16)
+    log, _ = rollout(make(scenario, num_envs=16, seed=7), _Replay(commands), episodes=16)
     assert stats == pytest.approx({"sr": float(success_rate(log).mean()), "steps": float(steps(log).mean()),
                                    "cr": float(collision_rate(log).mean())})
-    assert stats["steps"] < log.horizon  # some episode solved (seed 3): Steps is not just the horizon
+    assert stats["steps"] < log.horizon  # some episode solved (seed 7): Steps is not just the horizon
     if log.varying:  # the fixed-team rule (covered at the end) would have said less
         assert stats["sr"] > float(log.covered[:, -1].double().mean())
