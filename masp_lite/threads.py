@@ -16,10 +16,14 @@ imported, so it has to be in the environment before that moment:
 * :func:`passive_wait` says afterwards whether it took effect (it cannot when torch was imported
   first): :func:`masp_lite.course.setup` warns when it did not.
 
-How many threads: a second thread buys nothing for the world's step and for one team's decision
-(small tensors: the threads' hand-over costs what the split saves), so evaluation uses
-:data:`EVALUATE_THREADS`; training's minibatch updates are large enough for a second thread to pay
-(about 1.4x on a quiet 2-core machine), so training and the chapters use :data:`TRAIN_THREADS`.
+How many threads: one, for everything (:data:`EVALUATE_THREADS`, :data:`TRAIN_THREADS`). A second
+thread buys nothing for the world's step and for one team's decision (small tensors: the threads'
+hand-over costs what the split saves). For training it paid only while its threads spun: on a quiet
+2-core machine a MASP iteration on ``mpe-20`` ran 0.6 per second at two spinning threads against 0.4
+at one (32 worlds), but two spinning threads lose a third of that as soon as another program is busy,
+and two passive threads are slower than one even on a quiet machine (0.3 against 0.4-0.5 per second
+at 32 worlds; 0.6 against 1.1 at 8 worlds; ``bench busy --loops train --threads N``, research log,
+2026-12-07). ``train --threads 2`` and ``course.setup(threads=2)`` remain for a machine with idle cores.
 
 Nothing here imports torch, so any module may import this one before torch is loaded.
 """
@@ -34,8 +38,8 @@ __all__ = ["WAIT_POLICY_ENV", "EVALUATE_THREADS", "TRAIN_THREADS", "passive_wait
 WAIT_POLICY_ENV = "OMP_WAIT_POLICY"
 #: Torch threads for evaluation and benchmarks of the world's step and of a decision: a second buys nothing.
 EVALUATE_THREADS = 1
-#: Torch threads for training (``train --threads``) and the chapters (``course.setup``): a second pays there.
-TRAIN_THREADS = 2
+#: Torch threads for training (``train --threads``) and the chapters (``course.setup``): passive, a second costs.
+TRAIN_THREADS = 1
 
 
 def passive_wait() -> bool:

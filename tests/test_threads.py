@@ -91,7 +91,7 @@ def test_the_thread_counts_are_the_documented_ones():
         module.add_arguments(parser)
         return next(a.default for a in parser._actions if flag in a.option_strings)
 
-    assert EVALUATE_THREADS == 1 and TRAIN_THREADS == 2
+    assert EVALUATE_THREADS == 1 and TRAIN_THREADS == 1
     assert default(cli_evaluate) == default(env) == default(decide) == EVALUATE_THREADS
     assert default(cli_train) == default(train) == TRAIN_THREADS
     assert busy.LOOPS["world"][1] == busy.LOOPS["decide"][1] == EVALUATE_THREADS
