@@ -20,7 +20,7 @@ How many threads: one, for everything (:data:`EVALUATE_THREADS`, :data:`TRAIN_TH
 thread buys nothing for the world's step and for one team's decision (small tensors: the threads'
 hand-over costs what the split saves). For training it paid only while its threads spun: on a quiet
 2-core machine a MASP iteration on ``mpe-20`` ran 0.6 per second at two spinning threads against 0.4
-at one (32 worlds), but two spinning threads lose a third of that as soon as another program is busy,
+at one (32 worlds), but two spinning threads lose a quarter of that as soon as another program is busy,
 and two passive threads are slower than one even on a quiet machine (0.3 against 0.4-0.5 per second
 at 32 worlds; 0.6 against 1.1 at 8 worlds; ``bench busy --loops train --threads N``, research log,
 2026-12-07). ``train --threads 2`` and ``course.setup(threads=2)`` remain for a machine with idle cores.

@@ -21,8 +21,8 @@ calls per second; the printed ratio is their median, so a change in other load b
 On a machine with more than ``--cpus`` (2) CPUs the bench and its competitor are kept on 2 of them
 (Linux), since one busy program competes with nothing on a many-core machine: the figures are a 2-core
 laptop's. The goal is a ratio of at least 0.8 for every loop; two spinning threads, torch's default,
-measured about 0.03 for the world. On a quiet 2-core machine the defaults read 1.01 (world), 1.06 (decide)
-and 1.07 (train) (research log, 2026-12-07). A machine already busy before the bench starts makes the ratios
+measured about 0.03 for the world. On a quiet 2-core machine the defaults read 1.00 (world), 0.98 (decide)
+and 1.01 (train) (research log, 2026-12-07). A machine already busy before the bench starts makes the ratios
 lower (and the target says so first).
 """
 from __future__ import annotations
