@@ -38,6 +38,21 @@ from masp_lite.training import method_config, train
 from masp_lite.weights import load_weights, save_weights
 
 
+class Rollout(ImitationTrainer):
+    """The imitation on DAgger's states (tried, not kept): every global step of one episode per world, the
+    executor flying to the goals the policy's own decoding picks, so the layouts are those the policy meets
+    when it acts (agents moving, on their landmarks, landmarks covered)."""
+
+    @staticmethod
+    def draw_goals(logits, alive, generator):
+        goals = joint_argmax(logits, alive)
+        return goals, torch.zeros(goals.shape), torch.zeros_like(goals)
+
+    def layouts(self):
+        gm_data, _, stats = self.collect()
+        return {k: gm_data[k].flatten(0, 1) for k in self.obs_keys}, stats
+
+
 class Likelihood(ImitationTrainer):
     """The imitation stage with the draw's likelihood of the teacher's goals as its loss (not kept)."""
 
@@ -49,10 +64,13 @@ class Likelihood(ImitationTrainer):
         return draw_nll(logits, targets, obs["alive"], rank, goal_mask, accept)
 
 
-def trainer_type(loss: str, credit: str):
-    """The trainer of a ``--loss``: the product's (``None``) for ``decoding``, else a :class:`Likelihood`."""
+def trainer_type(loss: str, credit: str, states: str = "spawn"):
+    """The trainer of a ``--loss`` and ``--states``: the product's (``None``) for ``decoding`` on episode starts,
+    a :class:`Rollout` on DAgger's states, else a :class:`Likelihood`."""
     if loss == "decoding":
-        return None
+        return None if states == "spawn" else Rollout
+    if states != "spawn":
+        raise SystemExit("--states rollout: with --loss decoding only")
     return type(f"Likelihood_{loss}_{credit}", (Likelihood,), {"sequential": loss == "sequential",
                                                                 "credit": credit})
 
@@ -113,7 +131,7 @@ def run_train(args) -> None:
         Path(args.out).mkdir(parents=True, exist_ok=True)
         args.init = fresh_goal_matcher(args.init, str(Path(args.out).parent / (Path(args.out).name + "-init.pt")),
                                        args.train_seed)
-    sets = ["imitate=h-bottleneck", "train_executor=false", f"imitation_states={args.states}",
+    sets = ["imitate=h-bottleneck", "train_executor=false",
             f"updates={args.updates}", f"num_envs={args.worlds}", f"lr={args.lr}", "eval_every=0",
             f"eval_episodes={args.eval_episodes}", f"checkpoint_every={args.measure_every}", *args.set]
     method, cfg, overrides = method_config("masp-minmax", sets, args.scenario)
@@ -128,7 +146,8 @@ def run_train(args) -> None:
 
     manifest = train(args.scenario, cfg, args.out, seed=args.train_seed, resume=args.resume,
                      init=None if args.resume else args.init, overrides=overrides, progress=False,
-                     on_iteration=report, method=method, trainer_type=trainer_type(args.loss, args.credit))
+                     on_iteration=report, method=method,
+                     trainer_type=trainer_type(args.loss, args.credit, args.states))
     print(json.dumps({"final_eval": manifest["final_eval"], "wall_clock_s": manifest["wall_clock_s"]}), flush=True)
 
 

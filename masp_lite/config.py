@@ -31,8 +31,7 @@ EXECUTORS = ("graph", "mlp", "nearest", "subgraph", "attention", "radius")
 ACTIONS = ("discrete", "throttle", "velocity")
 """The settings of :attr:`NetConfig.goal_matcher`, :attr:`NetConfig.executor` and :attr:`NetConfig.action`."""
 TEACHERS = ("none", "h-bottleneck")
-IMITATION_STATES = ("spawn", "rollout")
-"""The settings of :attr:`ImitationConfig.imitate` and :attr:`ImitationConfig.imitation_states`."""
+"""The settings of :attr:`ImitationConfig.imitate`."""
 
 
 def _check(obj, name, low=None, high=None, integer=False):
@@ -203,20 +202,17 @@ class RunConfig:
 
 @dataclass
 class ImitationConfig:
-    """The Goal Matcher taught a teacher's assignment instead of MAPPO (ours): :mod:`masp_lite.algos.imitation`."""
+    """The Goal Matcher taught a teacher's assignment instead of MAPPO (ours): :mod:`masp_lite.algos.imitation`,
+    on ``num_envs`` fresh episode starts an iteration."""
 
     imitate: str = "none"
     """The teacher: ``none`` (MAPPO, the paper's training) or ``h-bottleneck``'s min-max assignment."""
-    imitation_states: str = "spawn"
-    """Its layouts: ``spawn``, ``num_envs`` episode starts an iteration; ``rollout``, every global step of
-    one episode of every world, the policy's decoding choosing the goals (DAgger's states)."""
     imitation_margin: float = 4.0
     """The margin per agent sent past the teacher's longest trip (squared nats of the decoding's cost)."""
 
     def __post_init__(self):
-        for name, allowed in (("imitate", TEACHERS), ("imitation_states", IMITATION_STATES)):
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"{name}: expected one of {list(allowed)}, got {getattr(self, name)!r}")
+        if self.imitate not in TEACHERS:
+            raise ValueError(f"imitate: expected one of {list(TEACHERS)}, got {self.imitate!r}")
         _check(self, "imitation_margin", 0.0)
 
 

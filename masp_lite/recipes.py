@@ -146,40 +146,30 @@ MASP = Recipe("masp", "masp", (
 
 
 IMITATION = {"imitate": "h-bottleneck", "train_executor": False, "imitation_margin": 4.0, "eval_every": 0,
-             "eval_episodes": 32}
+              "eval_episodes": 32, "checkpoint_every": 100}
 """``masp-minmax``'s imitation (ours, :mod:`masp_lite.algos.imitation`): the Goal Matcher alone taught to keep
 h-bottleneck's longest trip in the evaluation's decoding (the margin loss; the likelihoods of the draw did not
 move it, research log 2026-12-07)."""
 
 
-def _minmax_chain(preset: str, start: str, fine_tune: tuple) -> tuple:
-    """``masp-minmax`` on one preset, from MASP's weights (its stage ``start``): imitation on episode starts
-    (1500 x 32 layouts), then on the states the policy itself meets (DAgger, 30 episodes x 16 worlds: a Goal
-    Matcher taught on starts alone re-decides badly mid-episode), then MAPPO on R_GM with the Goal Matcher
-    alone (the paper's training at a fine-tune's step size; ``fine_tune``: iterations, worlds, evaluation
-    period). The imitation budgets are the ones measured at N = 50. The fine-tune is short and evaluated
-    often: 20 iterations of it at N = 50 took back the imitation's gain (research log, 2026-12-07)."""
-    iterations, worlds, every = fine_tune
-    return (Stage(f"imitate-{preset}", preset, 1500, 32, {**IMITATION, "imitation_states": "spawn",
-                                                         "checkpoint_every": 50}, start),
-            Stage(f"dagger-{preset}", preset, 30, 16, {**IMITATION, "imitation_states": "rollout",
-                                                      "checkpoint_every": 5}, f"imitate-{preset}"),
-            Stage(f"minmax-{preset}", preset, iterations, worlds,
-                  {"train_executor": False, "lr": 2e-4, "entropy_coef": 0.005, "gm_ppo_epochs": 4,
-                   "gm_reference": "squared", **EVAL_SETTINGS, "eval_every": every}, f"dagger-{preset}",
-                  keep=f"masp-minmax/{preset}"))
+def _minmax_stage(preset: str, start: str) -> Stage:
+    """``masp-minmax`` on one preset: MASP's weights (its stage ``start``), the Goal Matcher taught by imitation
+    on 4,000 x 32 episode starts. Measured on validation layouts (training seed 0, evaluation seeds 100-102),
+    Steps at N = 50 after 1,500 / 4,000 iterations: 44.78 / 41.66 (h-bottleneck 41.35, MASP 46.90); what was
+    tried after it and not kept (DAgger's states, MAPPO on R_GM with or without the margin beside it) cost
+    Steps every time (research log, 2026-12-07)."""
+    return Stage(f"imitate-{preset}", preset, 4000, 32, IMITATION, start, keep=f"masp-minmax/{preset}")
 
 
 MASP_MINMAX = Recipe("masp-minmax", "masp-minmax", (
     # MASP's own stages (not kept here: the plan trains them once, with masp's); the executor is MASP's
     *(replace(s, keep=None) for s in MASP.chain("mpe-20-both")),
     *(replace(s, keep=None) for s in MASP.chain("mpe-5")),
-    *_minmax_chain("mpe-50", "mpe-20-both", (50, 16, 10)),
-    *_minmax_chain("mpe-20", "mpe-20-both", (50, 32, 10)),
-    *_minmax_chain("mpe-5", "mpe-5", (100, 64, 25)),
-), "beyond the paper: MASP's Goal Matcher taught h-bottleneck's min-max assignment, then MAPPO on R_GM, the "
-   "executor MASP's; until MASP is retrained, run an imitate-* stage with --init masp_lite/weights/mpe-20.pt "
-   "(mpe-5.pt for mpe-5)")
+    _minmax_stage("mpe-50", "mpe-20-both"),
+    _minmax_stage("mpe-20", "mpe-20-both"),
+    _minmax_stage("mpe-5", "mpe-5"),
+), "beyond the paper: MASP's Goal Matcher taught h-bottleneck's min-max assignment by imitation, the executor "
+   "MASP's (mpe-50's Goal Matcher also serves mpe-50to20 and larger teams)")
 
 
 def _drone_masp(name: str, method: str, executor_iterations: int, executor_eval: int, keep: str, about: str):

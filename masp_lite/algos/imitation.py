@@ -1,14 +1,15 @@
-"""The Goal Matcher taught an assignment by imitation: the first stages of ``masp-minmax`` (ours, not the paper's).
+"""The Goal Matcher taught an assignment by imitation: ``masp-minmax``'s stage (ours, not the paper's).
 
 **Why.** Steps waits for the *last* landmark, so the min-max ("bottleneck") assignment re-solved every
 global step (``h-bottleneck``: :func:`~masp_lite.algos.team.bottleneck` and straight flight) needs fewer
 Steps than MASP at N = 50, and MAPPO on R_GM (eq. 1) with the training draw does not bring the Goal Matcher
 near it within CPU-hours (research log, 2026-12-03): R_GM's reference minimises a total, and a min-max
 reference gives every agent but the one on the longest trip the same reward. The learned assignment
-methods that scale to hundreds of agents start from a solver's assignments and then fine-tune by RL; these
-stages are the first half of that recipe, with the min-max solver as the teacher (:data:`TEACHERS`, chosen
-by ``ImitationConfig.imitate``). The MAPPO stage that may follow is the paper's
-(:class:`~masp_lite.algos.masp_trainer.MASPTrainer`, Goal Matcher alone).
+methods that scale to hundreds of agents start from a solver's assignments and then fine-tune by RL; this
+stage is the first half of that recipe, with the min-max solver as the teacher (:data:`TEACHERS`, chosen
+by ``ImitationConfig.imitate``). The second half is not kept: MAPPO on R_GM after the imitation (the
+paper's fine-tune, Goal Matcher alone) took back the imitation's gain in every design measured, with or
+without the margin below kept beside PPO's loss (research log, 2026-12-07; ``experiments/minmax_finetune.py``).
 
 **What is learned**, on layouts the world generates, with the teacher's goals ``g*`` and longest trip ``t*``:
 a structured margin on the evaluation's decoding (:func:`~masp_lite.nets.decoding.joint_argmax`, the
@@ -28,14 +29,13 @@ with the teacher's goals standing in for the picks, one fresh order per layout a
 within ``t*`` counted as right (:func:`within_longest_trip`) or not. Neither moved the decoding towards the
 min-max trip at N = 50.
 
-**On which layouts** (``imitation_states``): ``spawn``, a fresh episode start in every world each iteration
-(no step simulated: cheap); ``rollout``, every global step of one episode per world, the executor flying to
-the goals the policy's own decoding picks (:meth:`ImitationTrainer.draw_goals`): DAgger's states, with agents
-moving, on their landmarks and landmarks covered, which episode starts never show (a Goal Matcher taught on
-starts alone re-decides badly mid-episode). Agents the teacher leaves without a goal (more alive agents than
-allowed goals) and dropped agents are left out and block no goal. Only the Goal Matcher's actor learns (its
-optimizer, MAPPO's step size and gradient clip); the executor, both critics and their value normalisations
-stay as they were.
+**On which layouts**: a fresh episode start in every world each iteration (no step simulated: cheap).
+DAgger's states (every global step of episodes the policy flies to its own decoded goals) were tried after
+the starts and not kept: on the retrained MASP they undid the starts' gain (research log, 2026-12-07;
+``experiments/minmax_imitation.py --states rollout``). Agents the teacher leaves without a goal (more alive
+agents than allowed goals) and dropped agents are left out and block no goal. Only the Goal Matcher's actor
+learns (its optimizer, MAPPO's step size and gradient clip); the executor, both critics and their value
+normalisations stay as they were.
 """
 from __future__ import annotations
 
@@ -43,7 +43,6 @@ import numpy as np
 import torch
 from scipy.optimize import linear_sum_assignment
 
-from ..nets.decoding import joint_argmax
 from ..nets.goal_draw import MASKED, allowed_goals, conditional_logits
 from .mappo import NonFiniteError
 from .masp_trainer import MASPTrainer
@@ -149,7 +148,7 @@ class ImitationTrainer(MASPTrainer):
     :func:`masp_lite.training.train` uses it when ``imitate`` is set (``train --set imitate=h-bottleneck``);
     everything else of a run (checkpoints, exact resume, periodic evaluation, the manifest) is the same. A row
     of ``progress.csv`` holds the loss (``gm_policy_loss``) and the entropy of the categoricals it reads
-    (``gm_entropy``); the training rollout's SR, Steps and CR with ``rollout`` states."""
+    (``gm_entropy``)."""
 
     def __init__(self, scenario: str, cfg, seed: int = 0, overrides: dict | None = None):
         super().__init__(scenario, cfg, seed, overrides)
@@ -163,21 +162,11 @@ class ImitationTrainer(MASPTrainer):
             raise ValueError("imitate: the imitation trains the Goal Matcher alone; expected --set "
                              "train_executor=false (masp-minmax's own setting)")
 
-    @staticmethod
-    def draw_goals(logits, alive, generator):
-        """The goals of a ``rollout``: the policy's own decoding (:func:`~masp_lite.nets.decoding.joint_argmax`),
-        so the layouts are those the policy meets when it acts (DAgger's); no log-probability or order is used."""
-        goals = joint_argmax(logits, alive)
-        return goals, torch.zeros(goals.shape), torch.zeros_like(goals)
-
     def layouts(self) -> tuple[dict, dict]:
-        """``(obs, stats)``: this iteration's layouts as one observation batch (S, ...), and the training
-        rollout's SR, Steps and CR (NaN for ``spawn``: nothing is simulated)."""
-        if self.cfg.imitation.imitation_states == "spawn":
-            obs = self.world.reset()
-            return {k: obs[k] for k in self.obs_keys}, dict.fromkeys(("sr", "steps", "cr"), float("nan"))
-        gm_data, _, stats = self.collect()  # every global step's observation (the goals: the policy's decoding)
-        return {k: gm_data[k].flatten(0, 1) for k in self.obs_keys}, stats
+        """``(obs, stats)``: this iteration's layouts as one observation batch (S, ...), ``num_envs`` fresh
+        episode starts, and the SR, Steps and CR of a training rollout (NaN: nothing is simulated)."""
+        obs = self.world.reset()
+        return {k: obs[k] for k in self.obs_keys}, dict.fromkeys(("sr", "steps", "cr"), float("nan"))
 
     def goal_mask(self, obs: dict) -> torch.Tensor | None:
         """The goals a layout allows, as the policy allows them: a shrinking team's landmarks not reached yet."""
@@ -192,16 +181,15 @@ class ImitationTrainer(MASPTrainer):
         return decoding_margin_loss(logits, over, obs["alive"] & (targets >= 0), goal_mask,
                                     self.cfg.imitation.imitation_margin)
 
-    def iteration(self) -> dict[str, float]:
-        """One iteration: layouts, the teacher's goals, one pass over them in batches of ``num_envs`` layouts."""
+    def imitation_pass(self, obs: dict, weight: float = 1.0) -> tuple[float, float]:
+        """One pass of gradient steps on :meth:`loss` (times ``weight``) over the layouts ``obs`` (S, ...), in
+        batches of ``num_envs`` layouts, the teacher's goals computed first; returns the mean loss and entropy."""
         cfg, nets, g = self.cfg, self.nets, self.generator
-        obs, stats = self.layouts()
         with torch.no_grad():
             mask = self.goal_mask(obs)
             targets = teacher_goals(cfg.imitation.imitate, obs, mask)
-        S, N = targets.shape
         losses, entropies = [], []
-        for rows in torch.randperm(S, generator=g).split(cfg.run.num_envs):
+        for rows in torch.randperm(targets.shape[0], generator=g).split(cfg.run.num_envs):
             mb = {k: v[rows] for k, v in obs.items()}
             mb_mask = None if mask is None else mask[rows]
             logits = nets.gm_logits(mb, self.scale, mb_mask)
@@ -209,17 +197,23 @@ class ImitationTrainer(MASPTrainer):
             if not torch.isfinite(loss):
                 raise NonFiniteError(f"the imitation loss is {loss.item()}")
             self.gm_opt.zero_grad()
-            loss.backward()
+            (weight * loss).backward()
             norm = torch.nn.utils.clip_grad_norm_(nets.gm.parameters(), cfg.ppo.max_grad_norm)
             if not torch.isfinite(norm):
                 raise NonFiniteError(f"the Goal Matcher's gradient norm is {norm.item()}")
             self.gm_opt.step()
             losses.append(loss.item())
             entropies.append(entropy.item())
+        return sum(losses) / len(losses), sum(entropies) / len(entropies)
+
+    def iteration(self) -> dict[str, float]:
+        """One iteration: layouts, then :meth:`imitation_pass` over them."""
+        obs, stats = self.layouts()
+        loss, entropy = self.imitation_pass(obs)
         self.iterations += 1
         nan = float("nan")
         row = {"iteration": self.iterations, "env_steps": self.env_steps,
                **{f"train_{k}": v for k, v in stats.items()}, "gm_reward": nan, "cae_reward": nan,
-               "gm_policy_loss": sum(losses) / len(losses), "gm_entropy": sum(entropies) / len(entropies)}
+               "gm_policy_loss": loss, "gm_entropy": entropy}
         self.last_row = row
         return row
