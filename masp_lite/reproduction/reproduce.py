@@ -314,21 +314,26 @@ def _metric_table(name, title, scenarios, columns, records, latex, paper=None, m
     """Three metric rows per scenario, ours above the paper's, one column per ``(label, method, kept)``.
 
     ``kept`` picks a recipe's kept training seeds (:func:`pick`); ``paper(scenario, i)`` is
-    column ``i``'s paper cell, or None (default: ``PAPER[name][(scenario, method)]``). With
+    column ``i``'s paper cell, or None (default: ``PAPER[name][(scenario, method)]``; ``False``: no paper
+    rows, for a table beyond the paper). With
     ``matched``, the kept-seed columns pool only the training seeds all of them have, so that
     a variant trained with seed 0 alone is compared with MASP's seed 0, not with a mean over
     seeds it lacks."""
-    paper = paper or (lambda sc, i: PAPER[name].get((sc, columns[i][1])))
+    if paper is False:  # a table with no paper row (beyond the paper)
+        paper = None
+    else:
+        paper = paper or (lambda sc, i: PAPER[name].get((sc, columns[i][1])))
     head = ["Agents", "Metric", "", *(c[0] for c in columns)]
     rows, notes = [], []
     for sc in scenarios:
         common = _common_seeds(records, sc, columns) if matched else None
         ours = [pick(records, m, sc, kept, common if kept else None) for _, m, kept in columns]
-        theirs = [paper(sc, i) for i in range(len(columns))]
+        theirs = [paper(sc, i) for i in range(len(columns))] if paper is not None else []
         for i, (key, label) in enumerate((("steps", "Steps ↓"), ("sr", "SR ↑"), ("cr", "CR ↓"))):
             rows.append([sc if i == 0 else "", label, "ours",
                          *(cell(r[key], latex) if r else "—" for r in ours)])
-            rows.append(["", "", "paper", *(cell(p[key], latex) if p else "" for p in theirs)])
+            if paper is not None:
+                rows.append(["", "", "paper", *(cell(p[key], latex) if p else "" for p in theirs)])
         notes += [f"{sc}, {label}: mean over training seeds {', '.join(map(str, r['training_seeds']))}"
                   for (label, _, _), r in zip(columns, ours) if r and "training_seeds" in r]
     return Table(name, title, get_scenario(scenarios[0]).world, head, rows, notes)
@@ -424,6 +429,19 @@ def table_faithful(records, latex=False) -> Table:
         return None if i == 2 else PAPER["mpe" if sc in _FIXED else "mpe-varying"].get((sc, "masp"))
     return _metric_table("faithful", "MASP: shipped weights and eq. 1 as written", _FIXED + _VARYING, columns,
                          records, latex, paper)
+
+
+#: Where the training seeds of ``masp-minmax`` are kept (``results/training/masp-minmax/``).
+MINMAX = "masp-minmax/"
+
+
+def table_beyond(records, latex=False) -> Table:
+    """Beyond the paper: ``masp-minmax`` (MASP's Goal Matcher taught h-bottleneck's min-max assignment by
+    imitation, :mod:`masp_lite.algos.imitation`; its kept training seeds) beside MASP as shipped and the
+    assignment it imitates, on fixed and shrinking teams. The paper reports none of them: no paper rows."""
+    columns = [("MASP", "masp", ""), ("masp-minmax", "masp-minmax", MINMAX), ("h-bottleneck", "h-bottleneck", "")]
+    return _metric_table("beyond", "Beyond the paper: a Goal Matcher taught the min-max assignment", _FIXED + _VARYING,
+                         columns, records, latex, paper=False)
 
 
 #: The ablation tables (N = 20): table -> its columns ``(label, method, kept folder)``. Every variant
@@ -766,7 +784,7 @@ def _drone_rl_claims(records, add, paper_of) -> None:
 
 TABLES = {"mpe": table_mpe, "mpe-varying": table_mpe_varying, "omnidrones": table_omnidrones,
           "omnidrones-varying": table_omnidrones_varying, "per-step-time": table_time, "claims": table_claims,
-          "drone-claims": table_drone_claims, "faithful": table_faithful,
+          "drone-claims": table_drone_claims, "faithful": table_faithful, "beyond": table_beyond,
           **{name: (lambda records, latex=False, name=name: table_ablation(name, records, latex))
              for name in ABLATION_TABLES},
           "ablation-claims": table_ablation_claims}
@@ -804,6 +822,12 @@ def evaluation_jobs(table: str) -> list[tuple[str, str, dict]]:
                 jobs.append((m, sc, {**({"checkpoint": checkpoint} if checkpoint else {}),
                                      "method_options": {"any_scenario": True} if zero_shot else {}}))
         return jobs
+    if table == "beyond":  # the shipped MASP, h-bottleneck and masp-minmax's kept training seeds
+        kept = sorted((RESULTS_DIR / "training" / MINMAX).glob("*-seed*.pt"))
+        return [job for sc in _FIXED + _VARYING
+                for job in [("masp", sc, {}), ("h-bottleneck", sc, {})] +
+                [("masp-minmax", sc, {"checkpoint": f"results/training/{MINMAX}{k.name}"}) for k in kept
+                 if k.name.startswith(f"{base_scenario(sc)}-seed")]]
     if table == "per-step-time":
         return [(m, "mpe-50", {"num_envs": 1}) for m in ("h-orca", "h-rrtstar", "h-voronoi", "masp")]
     scenarios = {"mpe": ("mpe-5", "mpe-20", "mpe-50"), "mpe-varying": ("mpe-20to10", "mpe-50to20"),
