@@ -92,9 +92,9 @@ METHODS: dict[str, dict[str, dict]] = {
     "masp-velocity": {"drone": {"policy": "drone_masp:DroneMASPPolicy",
                                 "nets": {"executor": "graph", "action": "velocity"}, "weights": _DRONE_SIZES}},
     # beyond the paper: MASP's networks and executor, its Goal Matcher taught h-bottleneck's min-max assignment by
-    # imitation, then fine-tuned alone by MAPPO (masp_lite.algos.imitation; the recipe masp-minmax)
+    # imitation (masp_lite.algos.imitation; the recipe masp-minmax); mpe-50's weights also run mpe-50to20
     "masp-minmax": {"particle": {"policy": "masp:MASPPolicy", "nets": _GRAPH, "group": "beyond",
-                                 "weights": ()}},  # none packaged yet (its recipe has not run): checkpoint=PATH
+                                 "weights": _TEAM_SIZES}},
     # the paper's ablations (trained on mpe-20)
     "masp-rg": {"particle": _learned("ablation", "random", "graph", ("mpe-20",))},
     "gm-mlp": {"particle": _learned("ablation", "mlp", "graph", ("mpe-20",))},
