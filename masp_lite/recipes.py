@@ -146,7 +146,7 @@ MASP = Recipe("masp", "masp", (
 
 
 IMITATION = {"imitate": "h-bottleneck", "train_executor": False, "imitation_margin": 4.0, "eval_every": 0,
-              "eval_episodes": 32, "checkpoint_every": 100}
+             "eval_episodes": 32, "checkpoint_every": 100}
 """``masp-minmax``'s imitation (ours, :mod:`masp_lite.algos.imitation`): the Goal Matcher alone taught to keep
 h-bottleneck's longest trip in the evaluation's decoding (the margin loss; the likelihoods of the draw did not
 move it, research log 2026-12-07)."""
@@ -154,10 +154,11 @@ move it, research log 2026-12-07)."""
 
 def _minmax_stage(preset: str, start: str) -> Stage:
     """``masp-minmax`` on one preset: MASP's weights (its stage ``start``), the Goal Matcher taught by imitation
-    on 4,000 x 32 episode starts. Measured on validation layouts (training seed 0, evaluation seeds 100-102),
-    Steps at N = 50 after 1,500 / 4,000 iterations: 44.78 / 41.66 (h-bottleneck 41.35, MASP 46.90); what was
-    tried after it and not kept (DAgger's states, MAPPO on R_GM with or without the margin beside it) cost
-    Steps every time (research log, 2026-12-07)."""
+    on 4,000 x 32 episode starts. Measured on validation layouts (evaluation seeds 100-102; h-bottleneck 41.35,
+    MASP 46.90), Steps at N = 50 for training seed 0 after 1,500 iterations 44.78, after 4,000 43.55 (seeds 1
+    and 2: 43.53, 47.97); trained on, the policy breaks (6,000: SR 0.89). What was tried after it and not kept
+    (DAgger's states, MAPPO on R_GM with or without the margin beside it) cost Steps every time (research log,
+    2026-12-07)."""
     return Stage(f"imitate-{preset}", preset, 4000, 32, IMITATION, start, keep=f"masp-minmax/{preset}")
 
 
