@@ -259,3 +259,15 @@ def test_readme_claims_are_the_ones_the_records_give():
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     assert {m.group(2) for m in rp.BLOCK.finditer(text)} == {"claims", "drone-claims", "ablation-claims", "beyond"}
     assert rp.fill_blocks(text, rp.load_records()) == text, "README.md: a claims block is stale (rp.fill_blocks)"
+
+
+def test_the_table_beyond_the_paper_pools_masp_minmaxs_three_training_seeds():
+    records = rp.load_records()
+    table = rp.build("beyond", records)
+    assert "—" not in rp.render(table, "text").split("Legend")[0] and "paper" not in {r[2] for r in table.rows}
+    for sc in ("mpe-5", "mpe-20", "mpe-50", "mpe-20to10", "mpe-50to20"):
+        mine = rp.pick(records, "masp-minmax", sc, rp.MINMAX)
+        assert mine["training_seeds"] == [0, 1, 2], sc
+    jobs = rp.evaluation_jobs("beyond")
+    assert ("masp-minmax", "mpe-50to20", {"checkpoint": "results/training/masp-minmax/mpe-50-seed2.pt"}) in jobs
+    assert not any(m == "masp-minmax" and "mpe-5-seed" in kw["checkpoint"] for m, sc, kw in jobs if sc != "mpe-5")
