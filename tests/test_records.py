@@ -76,3 +76,14 @@ def test_every_shipped_file_has_its_history():
         history = json.loads((ROOT / entry["history"]).read_text())
         assert history["sha256"] == entry["sha256"] and len(history["stages"]) == entry["stages"]
         assert sum(s["training"]["env_steps"] for s in history["stages"]) == entry["env_steps"]
+
+
+def test_every_packaged_method_file_is_its_training_seeds_weights():
+    """The package's seed-0 copy of each learned method (``methods/manifest.json``) is the file it says it copies,
+    byte for byte, so retraining a method cannot leave the package evaluating the old weights."""
+    from masp_lite.weights import METHODS_DIR
+    for method, presets in json.loads((METHODS_DIR / "manifest.json").read_text()).items():
+        for preset, entry in presets.items():
+            packaged = METHODS_DIR / entry["file"]
+            assert sha256(packaged) == entry["sha256"], (method, preset)
+            assert sha256(ROOT / entry["copy_of"]) == entry["sha256"], f"{method}/{preset}: {entry['copy_of']} was retrained"
