@@ -35,8 +35,17 @@ def test_the_plan_is_the_recipes_and_every_kept_history_is_one_of_its_runs():
     assert "results/faithful/masp-seed0_mpe-50.json" in faithful.records  # zero-shot records follow the weights
     drone = by_name["drone-20-seed0"]
     assert drone.shipped and [s.init for s in drone.stages] == [None, 0, 1]
-    assert {"results/omnidrones/masp_drone-20.json", "results/omnidrones-varying/masp_drone-20to10.json"} \
-        == set(drone.records)
+    assert {"results/omnidrones/masp_drone-20.json", "results/omnidrones-varying/masp_drone-20to10.json",
+            "results/omnidrones-split/masp-decode-hungarian_drone-20.json",  # the default weights, with an option
+            "results/omnidrones-split/h-orca-goals-masp_drone-20.json"} <= set(drone.records)  # as a goal source
+    assert not any("velocity" in r or "-seed" in r for r in drone.records)
+    velocity = by_name["masp-velocity/drone-20-seed0"]  # a method's packaged seed 0 follows its run too
+    assert velocity.packaged == "masp_lite/weights/methods/masp-velocity/drone-20.pt" and not velocity.shipped
+    assert {"results/omnidrones/masp-velocity-train-seed0_drone-20.json",
+            "results/omnidrones-split/h-orca-goals-masp-velocity_drone-20.json"} <= set(velocity.records)
+    assert "results/omnidrones-split/h-orca-goals-masp-velocity_drone-20.json" not in \
+        by_name["masp-velocity/drone-5-seed0"].records
+    assert by_name["masp-velocity/drone-20-seed1"].packaged is None
     # drone-20 starts from drone-5's first stage: one task, the shared stage trained once
     tasks = plan._tasks([by_name["drone-5-seed0"], drone, faithful])
     assert sorted(len(t) for t in tasks) == [1, 2]
@@ -46,12 +55,12 @@ def test_the_plan_is_the_recipes_and_every_kept_history_is_one_of_its_runs():
     assert "drone-20-seed0" in text and "h of training in turn" in text
 
 
-def _tiny_run(seed: int, records=()) -> Run:
+def _tiny_run(seed: int, records=(), packaged=None) -> Run:
     config = {**TrainConfig().flat(), "goal_matcher": "hungarian", "executor": "nearest", "num_envs": 2,
               "updates": 6, "eval_every": 0, "eval_episodes": 2, "checkpoint_every": 2, "ppo_epochs": 1,
               "gm_ppo_epochs": 1}
     return Run(f"h-mappo/mpe-5-seed{seed}", (Stage("mpe-5", "h-mappo", seed, config, {}, None, 1, 540, 1.0),),
-               False, "a tiny test run", tuple(records))
+               False, "a tiny test run", tuple(records), packaged)
 
 
 def _record(root: Path, seed: int) -> str:
@@ -76,7 +85,16 @@ def _same(a: dict, b: dict) -> bool:
 def in_turn(tmp_path_factory):
     """A two-run plan run in turn in a fresh root."""
     root = tmp_path_factory.mktemp("in-turn")
-    runs = [_tiny_run(0, [_record(root, 0)]), _tiny_run(1)]
+    package = root / "masp_lite/weights/methods"  # seed 0 is packaged: an old file the run replaces
+    (package / "h-mappo").mkdir(parents=True)
+    (package / "h-mappo/mpe-5.pt").write_bytes(b"old weights")
+    (package / "manifest.json").write_text(json.dumps({"h-mappo": {"mpe-5": {
+        "copy_of": "results/training/h-mappo/mpe-5-seed0.pt", "file": "h-mappo/mpe-5.pt", "sha256": "0" * 64}}}))
+    default = "results/rl/h-mappo_mpe-5.json"  # a record of the packaged default: no checkpoint option
+    (root / "results/rl").mkdir(parents=True)
+    (root / default).write_text(json.dumps({"method": "h-mappo", "scenario": "mpe-5", "seeds": [0],
+                                            "episodes_per_seed": 2, "num_envs": 2, "sr": {"mean": 0.0, "std": 0.0}}))
+    runs = [_tiny_run(0, [_record(root, 0), default], "masp_lite/weights/methods/h-mappo/mpe-5.pt"), _tiny_run(1)]
     said = []
     assert run_plan(runs, root, use_ray=False, say=said.append) == ["h-mappo/mpe-5-seed0", "h-mappo/mpe-5-seed1"]
     return root, runs, said
@@ -91,6 +109,12 @@ def test_a_plan_in_turn_ships_weights_histories_and_remakes_the_records(in_turn,
     assert rec["checkpoint_sha256"] == sha256(root / "results/training/h-mappo/mpe-5-seed0.pt")
     assert rec["episodes_per_seed"] == 2 and "steps" in rec and "cr" in rec
     assert not _same(_weights(root, "h-mappo/mpe-5-seed0"), _weights(root, "h-mappo/mpe-5-seed1"))
+    packaged = root / "masp_lite/weights/methods/h-mappo/mpe-5.pt"  # the package's copy follows seed 0
+    assert packaged.read_bytes() == (root / "results/training/h-mappo/mpe-5-seed0.pt").read_bytes()
+    manifest = json.loads((root / plan.METHODS_MANIFEST).read_text())
+    assert manifest["h-mappo"]["mpe-5"]["sha256"] == sha256(packaged)
+    default = json.loads((root / "results/rl/h-mappo_mpe-5.json").read_text())
+    assert "steps" in default and "method_options" not in default  # re-made, still naming the default weights
     assert any("started" in s for s in said)
     # run again: everything is done, nothing trains
     monkeypatch.setattr(plan, "train", lambda *a, **k: pytest.fail("a finished run trained again"))

@@ -86,4 +86,4 @@ def test_every_packaged_method_file_is_its_training_seeds_weights():
         for preset, entry in presets.items():
             packaged = METHODS_DIR / entry["file"]
             assert sha256(packaged) == entry["sha256"], (method, preset)
-            assert sha256(ROOT / entry["copy_of"]) == entry["sha256"], f"{method}/{preset}: {entry['copy_of']} was retrained"
+            assert sha256(ROOT / entry["copy_of"]) == entry["sha256"], f"{method}/{preset}: {entry['copy_of']} changed"

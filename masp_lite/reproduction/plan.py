@@ -7,9 +7,9 @@ written by :func:`masp_lite.reproduction.shipping.ship_run`) are the record of w
 whose history matches its recipe stage by stage (scenario, overrides, every setting) shows the
 environment steps and wall-clock measured when it was trained; one that does not match (or has
 no history yet) is planned all the same, its wall-clock unknown. The records a run re-makes are
-every record in ``results/`` whose checkpoint is the run's weights file, or, for shipped weights,
-the records of the presets they serve. A kept history that no recipe makes is left out with the
-reason (:func:`read_plan`'s second list).
+every record in ``results/`` whose checkpoint is the run's weights file, or, for shipped weights
+and a method's packaged seed-0 copy (refreshed with the run), the records that read them by default.
+A kept history that no recipe makes is left out with the reason (:func:`read_plan`'s second list).
 
 :func:`run_plan` trains each stage in ``runs/reproduce/stages/`` under a name that hashes
 the stage and everything it starts from, so two runs that share their first stages
@@ -43,7 +43,7 @@ from ..evaluation import evaluate
 from ..files import atomic_write, read_bounded, sha256
 from ..recipes import RECIPES, Recipe, stage_config
 from ..training import train
-from ..weights import base_scenario, trained_preset
+from ..weights import base_scenario, packaged_preset, trained_preset
 from .reproduce import load_records
 from .shipping import ship_run
 
@@ -85,6 +85,9 @@ class Run:
     note: str | None
     records: tuple
     """Record paths relative to the root, re-made from the weights."""
+    packaged: str | None = None
+    """The package's copy of these weights (``masp_lite/weights/methods/METHOD/PRESET.pt``, a learned method's
+    seed-0 default), refreshed when the run is shipped; None when the package holds none."""
 
     @property
     def env_steps(self) -> int:
@@ -137,15 +140,39 @@ def _run_stages(recipe: Recipe, keep_stage, seed: int, history: dict | None) -> 
                  for p, t in zip(planned, kept))
 
 
-def _records(records, root: Path, name: str, shipped_preset: str | None) -> tuple:
+METHODS_MANIFEST = "masp_lite/weights/methods/manifest.json"
+"""The package's seed-0 weights of the learned methods besides the shipped MASP, relative to the root."""
+
+
+def _packaged(root: Path) -> dict:
+    """``{weights file the package copies: (method, preset, package file, the method's packaged presets)}``,
+    paths relative to ``root``."""
+    path = root / METHODS_MANIFEST
+    data = json.loads(read_bounded(path, what="manifest")) if path.exists() else {}
+    return {e["copy_of"]: (m, p, str(Path(METHODS_MANIFEST).parent / e["file"]), tuple(presets))
+            for m, presets in data.items() for p, e in presets.items()}
+
+
+def _records(records, root: Path, name: str, shipped_preset: str | None, packaged=None) -> tuple:
     """The records (from :func:`masp_lite.evaluation.load_records`) made from this run's weights, as paths
-    relative to ``root``; bench timings, which have no ``seeds``, are not re-made."""
+    relative to ``root``: those whose checkpoint is the run's file, and those that read the weights a run's
+    file is the default of (no checkpoint): the shipped MASP of a preset (``shipped_preset``), or a method's
+    packaged copy (``packaged``: an entry of :func:`_packaged`), as the method itself or as a planner's goal
+    source (``goals=METHOD``). Bench timings, which have no ``seeds``, are not re-made."""
     target = f"results/training/{name}.pt"
     out = []
     for rec in records:
         opts = rec.get("method_options", {})
-        mine = opts.get("checkpoint") == target if not shipped_preset else \
-            (not opts and rec["method"] == "masp" and trained_preset(rec["scenario"]) == shipped_preset)
+        reads = opts.get("goals", rec["method"])  # the method whose weights the record runs
+        if "checkpoint" in opts:
+            mine = opts["checkpoint"] == target
+        elif shipped_preset:
+            mine = reads == "masp" and trained_preset(rec["scenario"]) == shipped_preset
+        elif packaged:
+            method, preset, _, presets = packaged
+            mine = reads == method and packaged_preset(rec["scenario"], list(presets)) == preset
+        else:
+            mine = False
         if mine and "seeds" in rec:
             out.append(str(Path(rec["path"]).resolve().relative_to(root.resolve())))
     return tuple(out)
@@ -175,6 +202,7 @@ def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
         if (root / "masp_lite/weights/manifest.json").exists() else {}
     shipped_by_history = {v["history"]: k for k, v in shipped.items() if not v.get("trained_on")}
     records = load_records(root / "results")
+    packaged = _packaged(root)
     runs, skipped = [], []
     for recipe in RECIPES.values():
         for stage in (s for s in recipe.stages if s.keep):
@@ -189,7 +217,9 @@ def read_plan(root) -> tuple[list[Run], list[tuple[str, str]]]:
                 note = f"recipe {recipe.name}, stage {stage.name}, training seed {seed}"
                 if history is not None and stages[-1].wall_clock_s is not None:  # kept: its own note
                     note = history.get("note") or note
-                runs.append(Run(name, stages, preset is not None, note, _records(records, root, name, preset)))
+                copy = packaged.get(f"results/training/{name}.pt")
+                runs.append(Run(name, stages, preset is not None, note, _records(records, root, name, preset, copy),
+                                copy and copy[2]))
     planned = {r.name for r in runs}
     kept = (str(p.relative_to(base))[: -len(".manifest.json")] for p in sorted(base.rglob("*.manifest.json")))
     skipped += [(name, "no recipe makes it (masp_lite.recipes)") for name in kept if name not in planned]
@@ -227,6 +257,9 @@ def _check_plan_paths(runs) -> None:
         return parts
     for r in runs:
         inside(r.name, "run name")
+        if r.packaged is not None and (inside(r.packaged, "packaged weights")[:3] != ("masp_lite", "weights", "methods")
+                                       or not r.packaged.endswith(".pt")):
+            raise ValueError(f"packaged weights {r.packaged!r}: expected a masp_lite/weights/methods/....pt path")
         for rel in r.records:
             if inside(rel, "record")[0] != "results" or not rel.endswith(".json"):
                 raise ValueError(f"record {rel!r}: expected a results/....json path")
@@ -310,17 +343,27 @@ def _train_stage(run: Run, k: int, root: Path, say) -> Path:
     return out
 
 
-def _remake(root: Path, rel: str, weights: Path, shipped: bool) -> None:
+def _remake(root: Path, rel: str, weights: Path) -> None:
     rec = json.loads(read_bounded(root / rel, what="record"))
     opts = dict(rec.get("method_options", {}))
     new = evaluate(rec["method"], rec["scenario"], episodes=rec["episodes_per_seed"], seeds=rec["seeds"],
                    overrides=rec.get("overrides"), num_envs=rec.get("num_envs"),
                    method_options={k: v for k, v in opts.items() if k != "checkpoint"}, checkpoint=weights)
-    if shipped:
-        new.pop("method_options")
-    else:
-        new["method_options"] = opts  # the checkpoint as the record names it, relative to the root
+    new.pop("method_options", None)
+    if opts:  # as the record names them: a kept checkpoint relative to the root, none for default weights
+        new["method_options"] = opts
     atomic_write(root / rel, (json.dumps(new, indent=2) + "\n").encode())
+
+
+def _repackage(root: Path, packaged: str, weights: Path) -> None:
+    """The package's copy of a method's seed-0 weights (``packaged``) replaced by the retrained ``weights``,
+    and its hash in the methods' manifest."""
+    data = json.loads(read_bounded(root / METHODS_MANIFEST, what="manifest"))
+    file = Path(packaged).relative_to(Path(METHODS_MANIFEST).parent).as_posix()
+    entry = next(e for presets in data.values() for e in presets.values() if e["file"] == file)
+    atomic_write(root / packaged, weights.read_bytes())
+    entry["sha256"] = sha256(root / packaged)
+    atomic_write(root / METHODS_MANIFEST, (json.dumps(data, indent=2) + "\n").encode())
 
 
 def _run_task(task, root: str, say=print) -> list[str]:
@@ -339,9 +382,11 @@ def _run_task(task, root: str, say=print) -> list[str]:
         preset = base_scenario(run.stages[-1].scenario)
         weights = root / ("masp_lite/weights" if run.shipped else "results/training") / \
             (f"{preset}.pt" if run.shipped else f"{run.name}.pt")
+        if run.packaged:
+            _repackage(root, run.packaged, weights)
         for rel in run.records:
             say(f"{run.name}: evaluating {rel}")
-            _remake(root, rel, weights, run.shipped)
+            _remake(root, rel, weights)
         marker.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(marker, json.dumps({"weights_sha256": sha256(weights)}).encode())
         done.append(run.name)

@@ -48,7 +48,7 @@ from ..files import atomic_write, file_bytes, read_bounded, sha256
 from ..nets.masp import MASPNets
 
 __all__ = ["FORMAT", "HERE", "MANIFEST", "METHODS_DIR", "save_weights", "load_weights", "read_weights",
-           "read_manifest", "trained_world", "method_checkpoint",
+           "read_manifest", "trained_world", "method_checkpoint", "packaged_preset",
            "default_checkpoint", "base_scenario", "shipped_entry", "trained_preset", "weights_bytes"]
 
 FORMAT = "masp-lite/masp-weights/1"
@@ -128,15 +128,21 @@ def _methods_manifest() -> dict:
     return json.loads(path.read_text()) if path.exists() else {}
 
 
+def packaged_preset(scenario, presets) -> str | None:
+    """Which of a method's trained ``presets`` its packaged weights for ``scenario`` come from (the rule of
+    :func:`method_checkpoint`); None when none fits."""
+    sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
+    names = [sc.name, base_scenario(sc), f"{'drone' if sc.kind == 'drone' else 'mpe'}-{sc.num_agents}"]
+    return next((n for n in names if n in presets), presets[0] if len(presets) == 1 else None)
+
+
 def method_checkpoint(method: str, scenario, presets) -> Path:
     """The packaged seed-0 weights of ``method`` for a scenario, among the ``presets`` it was trained on.
 
     The scenario's own preset, else the preset it starts from (``mpe-20to10`` -> ``mpe-20``), else its
     team size's (``mpe-N``); a method trained on one preset only (the ablations, ``mpe-20``) uses that one."""
     sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
-    names = [sc.name, base_scenario(sc), f"{'drone' if sc.kind == 'drone' else 'mpe'}-{sc.num_agents}"]
-    pick = next((n for n in names if n in presets), presets[0] if len(presets) == 1 else None)
-    entry = _methods_manifest().get(method, {}).get(pick)
+    entry = _methods_manifest().get(method, {}).get(packaged_preset(sc, presets))
     if entry is None:
         raise ValueError(f"{method}: no weights given and none packaged for {sc.name!r} (packaged: "
                          f"{sorted(_methods_manifest().get(method, {}))}); pass checkpoint=PATH")
