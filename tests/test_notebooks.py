@@ -106,8 +106,6 @@ def _outputs_text(nb) -> str:
 #: A verdict line of :func:`masp_lite.reproduction.claims.verdict`: "SR   : MASP   0.990   h-greedy   1.000   -> ..."
 VERDICT = re.compile(r"(?P<metric>SR|Steps|CR)\s*: (?P<a>.+?)\s+(?P<va>never|-?\d+\.\d+)\s+(?P<b>.+?)\s+"
                      r"(?P<vb>never|-?\d+\.\d+)\s+-> (?P<word>[\w\- ']+?)\s*$")  # not a docstring's quoted example
-#: Chapters whose verdict lines are not checked yet: chapter 11 is being rewritten elsewhere.
-VERDICTS_UNCHECKED = {"11_drones"}
 
 
 def verdict_contradictions(text: str) -> list[str]:
@@ -161,8 +159,7 @@ def test_learner_notebook_runs_and_shows_no_answer_early(path, tmp_path, monkeyp
     assert refs, f"{path.name}: no exercise reference found"
     leaked = [expr for expr, source in refs.items() if source.strip() in shown]
     assert leaked == [], f"{path.name}: the learner version shows the answer of an unsolved exercise: {leaked}"
-    if path.stem not in VERDICTS_UNCHECKED:
-        assert verdict_contradictions(shown) == [], f"{path.name}: verdicts that contradict their numbers"
+    assert verdict_contradictions(shown) == [], f"{path.name}: verdicts that contradict their numbers"
     print(f"notebooks/{path.name}: {took:.0f} s")
 
 
