@@ -361,7 +361,7 @@ def _repackage(root: Path, packaged: str, weights: Path) -> None:
     data = json.loads(read_bounded(root / METHODS_MANIFEST, what="manifest"))
     file = Path(packaged).relative_to(Path(METHODS_MANIFEST).parent).as_posix()
     entry = next(e for presets in data.values() for e in presets.values() if e["file"] == file)
-    atomic_write(root / packaged, weights.read_bytes())
+    atomic_write(root / packaged, read_bounded(weights, what="weights file"))
     entry["sha256"] = sha256(root / packaged)
     atomic_write(root / METHODS_MANIFEST, (json.dumps(data, indent=2) + "\n").encode())
 
