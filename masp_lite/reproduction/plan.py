@@ -358,12 +358,13 @@ def _remake(root: Path, rel: str, weights: Path) -> None:
 def _repackage(root: Path, packaged: str, weights: Path) -> None:
     """The package's copy of a method's seed-0 weights (``packaged``) replaced by the retrained ``weights``,
     and its hash in the methods' manifest."""
-    data = json.loads(read_bounded(root / METHODS_MANIFEST, what="manifest"))
+    manifest = json.loads(read_bounded(root / METHODS_MANIFEST, what="manifest"))
     file = Path(packaged).relative_to(Path(METHODS_MANIFEST).parent).as_posix()
-    entry = next(e for presets in data.values() for e in presets.values() if e["file"] == file)
-    atomic_write(root / packaged, read_bounded(weights, what="weights file"))
-    entry["sha256"] = sha256(root / packaged)
-    atomic_write(root / METHODS_MANIFEST, (json.dumps(data, indent=2) + "\n").encode())
+    entry = next(e for presets in manifest.values() for e in presets.values() if e["file"] == file)
+    blob = read_bounded(weights, what="weights file")
+    atomic_write(root / packaged, blob)
+    entry["sha256"] = hashlib.sha256(blob).hexdigest()
+    atomic_write(root / METHODS_MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode())
 
 
 def _run_task(task, root: str, say=print) -> list[str]:
